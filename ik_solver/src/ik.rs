@@ -1,0 +1,291 @@
+//! The paper's closed-form leg IK (ALGORITHM.md, "Leg IK, corrected"), mapped to each URDF
+//! joint's axis sign and zero pose.
+//!
+//! A target is the ankle-pitch axis position relative to the leg's hip point (the hip-roll
+//! joint origin), in base-frame axes, plus a foot yaw for 6-joint legs. The sole is kept level
+//! and, on 6-joint legs, turned by the yaw. No iteration: a handful of `atan2`/`acos`.
+//!
+//! Unreachable targets are pulled onto the reachable boundary and joint-limit violations are
+//! clamped; both are reported as [`IkIssue`]s naming the leg, the joint and the amount.
+//! A non-finite target is refused with an [`IkError`]: NaN never leaves the solver.
+
+use std::f64::consts::PI;
+use std::fmt;
+
+use nalgebra::{Isometry3, Rotation3, Vector3};
+
+use crate::error::{IkError, ModelError};
+use crate::legs::{JointRole, Leg, LegRoleMap, Side, find_legs};
+use crate::model::RobotModel;
+
+/// Overshoot of the reach (m) taken as rounding of a straight leg, not reported.
+pub const REACH_TOLERANCE_M: f64 = 1e-12;
+
+/// Where one ankle should be.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AnkleTarget {
+    /// Ankle-pitch axis position relative to the hip point, base-frame axes (m).
+    pub ankle_in_hip_m: Vector3<f64>,
+    /// Foot yaw relative to the base (rad); must be 0 on 5-joint legs.
+    pub foot_yaw_rad: f64,
+}
+
+impl AnkleTarget {
+    /// A target with the foot straight ahead.
+    pub fn new(x_m: f64, y_m: f64, z_m: f64) -> Self {
+        Self { ankle_in_hip_m: Vector3::new(x_m, y_m, z_m), foot_yaw_rad: 0.0 }
+    }
+}
+
+/// Something the solver had to change to give a safe answer.
+#[derive(Debug, Clone, PartialEq)]
+pub enum IkIssue {
+    /// The target is farther from the hip pitch axis than the stretched leg reaches.
+    OutOfReach {
+        /// Which leg.
+        side: Side,
+        /// Distance asked for (m).
+        distance_m: f64,
+        /// The leg's reach (m).
+        reach_m: f64,
+    },
+    /// The target is closer to the hip pitch axis than the folded leg allows.
+    TooClose {
+        /// Which leg.
+        side: Side,
+        /// Distance asked for (m).
+        distance_m: f64,
+        /// The shortest distance the leg can make (m).
+        min_m: f64,
+    },
+    /// A joint angle beyond its URDF limit was clamped to the limit.
+    JointLimit {
+        /// Which leg.
+        side: Side,
+        /// Which joint role.
+        role: JointRole,
+        /// The URDF joint name.
+        joint: String,
+        /// The angle the target needed (rad).
+        requested_rad: f64,
+        /// The angle sent instead (rad).
+        clamped_rad: f64,
+    },
+    /// A foot yaw was asked of a leg without a hip yaw joint; 0 was used.
+    NoYawJoint {
+        /// Which leg.
+        side: Side,
+        /// The yaw asked for (rad).
+        requested_rad: f64,
+    },
+}
+
+impl fmt::Display for IkIssue {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            IkIssue::OutOfReach { side, distance_m, reach_m } => write!(
+                f,
+                "{side} leg: ankle target {distance_m:.4} m from the hip pitch axis is beyond the leg's reach {reach_m:.4} m by {:.4} m; pulled onto the reach",
+                distance_m - reach_m
+            ),
+            IkIssue::TooClose { side, distance_m, min_m } => write!(
+                f,
+                "{side} leg: ankle target {distance_m:.4} m from the hip pitch axis is closer than the folded leg allows ({min_m:.4} m) by {:.4} m; pushed out",
+                min_m - distance_m
+            ),
+            IkIssue::JointLimit { side, role, joint, requested_rad, clamped_rad } => write!(
+                f,
+                "{side} leg: {role} joint `{joint}` needs {requested_rad:.4} rad, beyond its limit by {:.4} rad; clamped to {clamped_rad:.4} rad",
+                (requested_rad - clamped_rad).abs()
+            ),
+            IkIssue::NoYawJoint { side, requested_rad } => {
+                write!(f, "{side} leg: foot yaw {requested_rad:.4} rad asked of a leg without a hip yaw joint; 0 used")
+            }
+        }
+    }
+}
+
+/// One leg's joint angles, by [`JointRole`] (URDF convention: the angle to send to the joint).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LegSolution {
+    /// Which leg.
+    pub side: Side,
+    /// Angle of each role (rad); the yaw entry is 0 on 5-joint legs.
+    pub angles_rad: [f64; 6],
+    /// What was clamped, empty when the target was solved exactly.
+    pub issues: Vec<IkIssue>,
+}
+
+impl LegSolution {
+    /// The angle of a role (rad).
+    pub fn angle(&self, role: JointRole) -> f64 {
+        self.angles_rad[role as usize]
+    }
+    /// True when the target was solved exactly, without clamping.
+    pub fn is_exact(&self) -> bool {
+        self.issues.is_empty()
+    }
+}
+
+/// A biped robot: its kinematic tree and its two legs.
+#[derive(Debug, Clone)]
+pub struct BipedModel {
+    robot: RobotModel,
+    legs: [Leg; 2],
+}
+
+fn check_finite(side: Side, field: &'static str, value: f64) -> Result<(), IkError> {
+    if value.is_finite() { Ok(()) } else { Err(IkError::NonFiniteTarget { side, field, value }) }
+}
+
+impl BipedModel {
+    /// Builds the model from a URDF document, finding the legs by their joint axes.
+    ///
+    /// ```
+    /// use ik_solver::{AnkleTarget, BipedModel, JointRole, Side};
+    /// let urdf = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../config/biped.urdf")).unwrap();
+    /// let biped = BipedModel::from_urdf_str(&urdf, None).unwrap();
+    /// // Ankle straight below the hip, 2 cm short of the stretched leg: the knee bends.
+    /// let reach = biped.leg(Side::Left).max_reach_m();
+    /// let sol = biped.solve_leg(Side::Left, &AnkleTarget::new(0.0, 0.0, -(reach - 0.02))).unwrap();
+    /// assert!(sol.is_exact() && sol.angle(JointRole::Knee).abs() > 0.1);
+    /// ```
+    pub fn from_urdf_str(urdf: &str, role_map: Option<&LegRoleMap>) -> Result<Self, ModelError> {
+        Self::from_robot(RobotModel::from_urdf_str(urdf)?, role_map)
+    }
+
+    /// Reads a URDF file: see [`Self::from_urdf_str`].
+    pub fn from_urdf_file(path: impl AsRef<std::path::Path>, role_map: Option<&LegRoleMap>) -> Result<Self, ModelError> {
+        Self::from_robot(RobotModel::from_urdf_file(path)?, role_map)
+    }
+
+    /// Finds the legs of an already parsed tree.
+    pub fn from_robot(robot: RobotModel, role_map: Option<&LegRoleMap>) -> Result<Self, ModelError> {
+        let legs = find_legs(&robot, role_map)?;
+        Ok(Self { robot, legs })
+    }
+
+    /// The whole kinematic tree (FK, CoM, all joints).
+    pub fn robot(&self) -> &RobotModel {
+        &self.robot
+    }
+
+    /// One leg.
+    pub fn leg(&self, side: Side) -> &Leg {
+        &self.legs[side.index()]
+    }
+
+    /// Solves one leg.
+    pub fn solve_leg(&self, side: Side, target: &AnkleTarget) -> Result<LegSolution, IkError> {
+        let leg = self.leg(side);
+        let p = target.ankle_in_hip_m;
+        check_finite(side, "ankle_in_hip.x", p.x)?;
+        check_finite(side, "ankle_in_hip.y", p.y)?;
+        check_finite(side, "ankle_in_hip.z", p.z)?;
+        check_finite(side, "foot_yaw", target.foot_yaw_rad)?;
+        let mut issues = Vec::new();
+
+        let yaw = if leg.has_yaw() {
+            target.foot_yaw_rad
+        } else {
+            if target.foot_yaw_rad != 0.0 {
+                issues.push(IkIssue::NoYawJoint { side, requested_rad: target.foot_yaw_rad });
+            }
+            0.0
+        };
+        // Into the yawed hip frame; the yaw axis passes through the hip point.
+        let p = Rotation3::from_axis_angle(&Vector3::z_axis(), -yaw) * p;
+
+        // Hip roll tilts the leg plane to contain the ankle; the pitch axis hangs
+        // `hip_roll_to_pitch_m` below the roll axis in that plane.
+        let roll = p.y.atan2(-p.z);
+        let mut x = p.x;
+        let mut z = p.y.hypot(p.z) - leg.hip_roll_to_pitch_m;
+
+        // The triangle hip pitch - knee - ankle pitch.
+        let (l1, l2) = (leg.thigh_m, leg.shin_m);
+        let reach = l1 + l2;
+        let min = (l1 - l2).abs().max(1e-6 * reach);
+        let mut d = x.hypot(z);
+        if d > reach {
+            // Straight legs land here by rounding; only a real overshoot is an issue.
+            if d > reach + REACH_TOLERANCE_M {
+                issues.push(IkIssue::OutOfReach { side, distance_m: d, reach_m: reach });
+            }
+            (x, z) = (x * reach / d, z * reach / d);
+            d = reach;
+        } else if d < min {
+            issues.push(IkIssue::TooClose { side, distance_m: d, min_m: min });
+            (x, z) = if d > 0.0 { (x * min / d, z * min / d) } else { (0.0, min) };
+            d = min;
+        }
+        let gamma = ((l1 * l1 + l2 * l2 - d * d) / (2.0 * l1 * l2)).clamp(-1.0, 1.0).acos();
+        let alpha = x.atan2(z);
+        let beta = ((l1 * l1 + d * d - l2 * l2) / (2.0 * l1 * d)).clamp(-1.0, 1.0).acos();
+        let thigh = alpha + beta; // forward angle of the thigh from straight down
+        let shin = thigh - (PI - gamma); // forward angle of the shin
+
+        // To URDF joint angles: a positive rotation about +y swings what hangs below backward.
+        let sign = |r: JointRole| leg.joint(r).map_or(1.0, |j| j.axis_sign);
+        let (t0, s0) = (leg.thigh_angle0_rad, leg.shin_angle0_rad);
+        let mut angles = [
+            sign(JointRole::HipYaw) * yaw,
+            sign(JointRole::HipRoll) * roll,
+            sign(JointRole::HipPitch) * (t0 - thigh),
+            sign(JointRole::Knee) * ((thigh - shin) - (t0 - s0)),
+            sign(JointRole::AnklePitch) * (shin - s0),
+            -sign(JointRole::AnkleRoll) * roll,
+        ];
+        for (role, joint) in leg.present() {
+            let a = &mut angles[role as usize];
+            let clamped = joint.limits.clamp(*a);
+            if clamped != *a {
+                issues.push(IkIssue::JointLimit {
+                    side,
+                    role,
+                    joint: joint.name.clone(),
+                    requested_rad: *a,
+                    clamped_rad: clamped,
+                });
+                *a = clamped;
+            }
+        }
+        Ok(LegSolution { side, angles_rad: angles, issues })
+    }
+
+    /// Solves both legs and writes their angles into the joint vector `q` (other joints are
+    /// left as they are). Returns what was clamped, for both legs.
+    pub fn solve_legs(&self, left: &AnkleTarget, right: &AnkleTarget, q: &mut [f64]) -> Result<Vec<IkIssue>, IkError> {
+        if q.len() != self.robot.dof_count() {
+            return Err(IkError::JointCount { expected: self.robot.dof_count(), got: q.len() });
+        }
+        // Solve both before writing either: a refused target leaves `q` untouched.
+        let l = self.solve_leg(Side::Left, left)?;
+        let r = self.solve_leg(Side::Right, right)?;
+        let mut issues = l.issues.clone();
+        issues.extend(r.issues.iter().cloned());
+        for sol in [l, r] {
+            self.write_leg(&sol, q);
+        }
+        Ok(issues)
+    }
+
+    /// Writes one leg's angles into a joint vector.
+    pub fn write_leg(&self, sol: &LegSolution, q: &mut [f64]) {
+        for (role, joint) in self.leg(sol.side).present() {
+            if let Some(slot) = q.get_mut(joint.dof) {
+                *slot = sol.angle(role);
+            }
+        }
+    }
+
+    /// Forward kinematics of the legs: each ankle's position relative to its hip point, in
+    /// base-frame axes, for a joint vector. The inverse of [`Self::solve_legs`].
+    pub fn ankles_in_hips(&self, q: &[f64]) -> Result<[Vector3<f64>; 2], IkError> {
+        let poses = self.robot.link_poses(&Isometry3::identity(), q)?;
+        Ok(Side::BOTH.map(|s| {
+            let leg = self.leg(s);
+            leg.ankle_world(&self.robot, &poses).coords - leg.hip_in_base_m
+        }))
+    }
+}

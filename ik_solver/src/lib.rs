@@ -1,0 +1,24 @@
+//! The kinematic core of the biped walk: a robot model read from any biped URDF, the paper's
+//! closed-form leg inverse kinematics, forward kinematics and the whole-body centre of mass.
+//!
+//! Data flow: URDF text → [`RobotModel`] (tree of links and joints, inertials, limits, FK,
+//! CoM) → [`BipedModel`] (the two legs found in the tree, with thigh and shin lengths, hip
+//! offsets, sole rectangles and axis signs) → [`BipedModel::solve_legs`] (ankle targets
+//! relative to the hips → joint angles in URDF convention).
+//!
+//! Pure library: no I/O beyond reading a URDF file when asked, no clock, no middleware. The
+//! `ik_solver` ROS 2 node wraps it. Frames follow REP-103 (x forward, y left, z up), lengths
+//! in metres, angles in radians.
+
+mod error;
+mod ik;
+mod legs;
+mod model;
+
+pub use error::{IkError, ModelError};
+pub use ik::{AnkleTarget, BipedModel, IkIssue, LegSolution};
+pub use legs::{Axis, JointRole, Leg, LegJoint, LegJointNames, LegRoleMap, Side, SoleRect};
+pub use model::{CollisionBox, Inertial, Joint, JointKind, JointLimits, Link, RobotModel};
+
+/// The URDF of the project's default robot, built in so every command has a robot to use.
+pub const DEFAULT_URDF: &str = include_str!("../../config/biped.urdf");
