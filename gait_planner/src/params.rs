@@ -1,0 +1,215 @@
+//! Gait parameters: the YAML file a user edits (ROS 2 parameter-file layout), their bounds,
+//! and the values derived from the robot where a parameter is left at 0 ("auto").
+//!
+//! ```yaml
+//! gait_planner:
+//!   ros__parameters:
+//!     step_length_m: 0.0   # 0 = auto
+//!     control_rate_hz: 100.0
+//! ```
+
+use ik_solver::{BipedModel, Side};
+use serde::{Deserialize, Serialize};
+
+use crate::error::GaitError;
+
+/// Fractions of the leg length (L1 + L2) used when a length is left at 0.
+pub mod auto {
+    /// Step length: distance the front foot ends ahead of the other.
+    pub const STEP_LENGTH_PER_LEG: f64 = 0.25;
+    /// Swing foot lift.
+    pub const FOOT_LIFT_PER_LEG: f64 = 0.12;
+    /// Hip-pitch-axis to ankle-pitch-axis height while walking.
+    pub const HIP_DROP_PER_LEG: f64 = 0.85;
+    /// Minimum CoM margin, as a fraction of the narrower sole side.
+    pub const MARGIN_PER_SOLE_WIDTH: f64 = 1.0 / 6.0;
+}
+
+/// The parameters as written in the YAML file. Lengths left at 0 are derived from the robot
+/// (see [`auto`]); [`GaitParams::resolve`] gives the values used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GaitParams {
+    /// How far the front foot ends ahead of the other after a step (m); the swing foot of a
+    /// full step travels twice this (the paper's s). 0 = auto.
+    pub step_length_m: f64,
+    /// Duration of each swing (half and full steps) (s).
+    pub step_duration_s: f64,
+    /// Duration of each CoM shift and of the final centring (s).
+    pub shift_duration_s: f64,
+    /// Duration of the initial crouch and of the optional final rise (s).
+    pub crouch_duration_s: f64,
+    /// Peak height of the swing foot above the floor (m). 0 = auto.
+    pub foot_lift_m: f64,
+    /// Height of the hip point (hip roll axis) above the floor while walking (m). 0 = auto.
+    pub hip_height_m: f64,
+    /// Ticks per second of the plan and of the node's publishing (Hz).
+    pub control_rate_hz: f64,
+    /// Smallest allowed distance from the CoM's floor projection to the support polygon's
+    /// edge (m). 0 = auto.
+    pub min_com_margin_m: f64,
+    /// Which foot swings first.
+    pub first_foot: Side,
+    /// Rise back to straight legs at the end of a walk.
+    pub rise_at_end: bool,
+}
+
+impl Default for GaitParams {
+    fn default() -> Self {
+        Self {
+            step_length_m: 0.0,
+            step_duration_s: 1.0,
+            shift_duration_s: 1.0,
+            crouch_duration_s: 1.0,
+            foot_lift_m: 0.0,
+            hip_height_m: 0.0,
+            control_rate_hz: 100.0,
+            min_com_margin_m: 0.0,
+            first_foot: Side::Left,
+            rise_at_end: false,
+        }
+    }
+}
+
+/// The parameters with every value concrete, checked against its bounds and the robot.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GaitConfig {
+    /// See [`GaitParams::step_length_m`].
+    pub step_length_m: f64,
+    /// See [`GaitParams::step_duration_s`].
+    pub step_duration_s: f64,
+    /// See [`GaitParams::shift_duration_s`].
+    pub shift_duration_s: f64,
+    /// See [`GaitParams::crouch_duration_s`].
+    pub crouch_duration_s: f64,
+    /// See [`GaitParams::foot_lift_m`].
+    pub foot_lift_m: f64,
+    /// See [`GaitParams::hip_height_m`].
+    pub hip_height_m: f64,
+    /// See [`GaitParams::control_rate_hz`].
+    pub control_rate_hz: f64,
+    /// See [`GaitParams::min_com_margin_m`].
+    pub min_com_margin_m: f64,
+    /// See [`GaitParams::first_foot`].
+    pub first_foot: Side,
+    /// See [`GaitParams::rise_at_end`].
+    pub rise_at_end: bool,
+}
+
+impl GaitConfig {
+    /// One control period (s).
+    pub fn dt_s(&self) -> f64 {
+        1.0 / self.control_rate_hz
+    }
+}
+
+fn check(key: &'static str, value: f64, lo: f64, hi: f64, unit: &str) -> Result<f64, GaitError> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(value)
+    } else {
+        Err(GaitError::Param { key, value, why: format!("must be within [{lo}, {hi}] {unit}") })
+    }
+}
+
+fn auto_or(key: &'static str, value: f64, derived: f64, lo: f64, hi: f64) -> Result<f64, GaitError> {
+    if value == 0.0 { check(key, derived, lo, hi, "m (derived from the robot)") } else { check(key, value, lo, hi, "m (0 = auto)") }
+}
+
+impl GaitParams {
+    /// Parses the `gait_planner` section of a ROS 2 parameter file (also `/gait_planner`,
+    /// `<ns>/gait_planner` and the `/**` wildcard, which the specific section overrides).
+    /// Sections of other nodes are ignored; unknown keys in ours are refused by name.
+    pub fn from_ros_yaml_str(text: &str) -> Result<Self, GaitError> {
+        Self::from_ros_yaml(text, None)
+    }
+
+    /// Reads a ROS 2 parameter file: see [`Self::from_ros_yaml_str`].
+    pub fn from_ros_yaml_file(path: impl AsRef<std::path::Path>) -> Result<Self, GaitError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| GaitError::ParamFile {
+            path: Some(path.display().to_string()),
+            message: e.to_string(),
+        })?;
+        Self::from_ros_yaml(&text, Some(path.display().to_string()))
+    }
+
+    fn from_ros_yaml(text: &str, path: Option<String>) -> Result<Self, GaitError> {
+        let err = |message: String| GaitError::ParamFile { path: path.clone(), message };
+        let doc: serde_norway::Value = serde_norway::from_str(text).map_err(|e| err(e.to_string()))?;
+        let Some(top) = doc.as_mapping() else {
+            return Err(err("the file is not a mapping of node names to `ros__parameters`".into()));
+        };
+        let mut merged = serde_norway::Mapping::new();
+        let mut found = false;
+        // Wildcard first, then the node's own section, so the specific one wins.
+        for pass in 0..2 {
+            for (k, v) in top {
+                let key = k.as_str().unwrap_or_default();
+                let ours = key == "gait_planner" || key.ends_with("/gait_planner");
+                let wildcard = key == "/**";
+                if (pass == 0 && !wildcard) || (pass == 1 && !ours) {
+                    continue;
+                }
+                let Some(params) = v.get("ros__parameters") else {
+                    return Err(err(format!("section `{key}` has no `ros__parameters`")));
+                };
+                let Some(map) = params.as_mapping() else {
+                    return Err(err(format!("`{key}.ros__parameters` is not a mapping")));
+                };
+                found |= ours;
+                for (pk, pv) in map {
+                    // The wildcard section may hold other nodes' parameters; keep only ours.
+                    let name = pk.as_str().unwrap_or_default();
+                    if ours || Self::is_known(name) {
+                        merged.insert(pk.clone(), pv.clone());
+                    }
+                }
+            }
+        }
+        if !found && merged.is_empty() {
+            return Err(err("no `gait_planner:` section".into()));
+        }
+        serde_norway::from_value(serde_norway::Value::Mapping(merged)).map_err(|e| err(format!("gait_planner.ros__parameters: {e}")))
+    }
+
+    fn is_known(name: &str) -> bool {
+        serde_norway::to_value(Self::default())
+            .ok()
+            .and_then(|v| v.as_mapping().map(|m| m.contains_key(name)))
+            .unwrap_or(false)
+    }
+
+    /// Checks every bound and fills in the values left at 0 from the robot.
+    pub fn resolve(&self, model: &BipedModel) -> Result<GaitConfig, GaitError> {
+        let left = model.leg(Side::Left);
+        let right = model.leg(Side::Right);
+        let leg = (left.thigh_m + left.shin_m).min(right.thigh_m + right.shin_m);
+        let sole_width = left.sole.width_m().min(left.sole.length_m()).min(right.sole.width_m()).min(right.sole.length_m());
+        let hip_lo = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + 0.5 * leg;
+        let hip_hi = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + leg;
+        Ok(GaitConfig {
+            step_length_m: auto_or("step_length_m", self.step_length_m, auto::STEP_LENGTH_PER_LEG * leg, 0.0, 0.6 * leg)?,
+            step_duration_s: check("step_duration_s", self.step_duration_s, 0.1, 60.0, "s")?,
+            shift_duration_s: check("shift_duration_s", self.shift_duration_s, 0.1, 60.0, "s")?,
+            crouch_duration_s: check("crouch_duration_s", self.crouch_duration_s, 0.1, 60.0, "s")?,
+            foot_lift_m: auto_or("foot_lift_m", self.foot_lift_m, auto::FOOT_LIFT_PER_LEG * leg, 0.001, 0.4 * leg)?,
+            hip_height_m: auto_or(
+                "hip_height_m",
+                self.hip_height_m,
+                left.ankle_to_sole_m + left.hip_roll_to_pitch_m + auto::HIP_DROP_PER_LEG * leg,
+                hip_lo,
+                hip_hi,
+            )?,
+            control_rate_hz: check("control_rate_hz", self.control_rate_hz, 1.0, 1000.0, "Hz")?,
+            min_com_margin_m: auto_or(
+                "min_com_margin_m",
+                self.min_com_margin_m,
+                auto::MARGIN_PER_SOLE_WIDTH * sole_width,
+                0.0,
+                sole_width,
+            )?,
+            first_foot: self.first_foot,
+            rise_at_end: self.rise_at_end,
+        })
+    }
+}

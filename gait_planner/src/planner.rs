@@ -1,0 +1,591 @@
+//! The walk engine: a phase machine stepped with time as an argument, which places the feet
+//! on the floor, moves the pelvis so the whole-body CoM follows its path over the support
+//! polygon, and turns both ankle positions into joint angles with the closed-form IK.
+//!
+//! World frame: on the floor at the midpoint between the feet of the initial pose, x forward,
+//! y left, z up. The pelvis is kept level and facing +x.
+
+use ik_solver::{AnkleTarget, BipedModel, IkIssue, Side};
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+
+use crate::error::GaitError;
+use crate::params::{GaitConfig, GaitParams};
+use crate::phase::{PhaseKind, Support, WalkRequest};
+use crate::support::{Xy, convex_hull, signed_margin};
+use crate::trajectory::{min_jerk, swing_advance, swing_height};
+
+/// Everything planned for one control tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GaitSample {
+    /// Time given to [`GaitPlanner::update`] (s).
+    pub t_s: f64,
+    /// The phase.
+    pub phase: PhaseKind,
+    /// Which feet carry the robot.
+    pub support: Support,
+    /// Number of the swing in progress or last finished (1 = the first half step); 0 before.
+    pub step_index: u32,
+    /// Progress through the phase, 0 to 1.
+    pub progress: f64,
+    /// Pose of the base (root) link in the world; level, facing +x.
+    pub base_world: Isometry3<f64>,
+    /// World position of each ankle-pitch axis, `[left, right]` (m).
+    pub ankles_world_m: [Point3<f64>; 2],
+    /// Each ankle relative to its hip point, base axes: what the IK node receives.
+    pub targets: [AnkleTarget; 2],
+    /// All joint positions (rad), in [`ik_solver::RobotModel::dof_names`] order; joints
+    /// outside the legs at 0.
+    pub joints_rad: Vec<f64>,
+    /// Whole-body centre of mass in the world (m).
+    pub com_world_m: Point3<f64>,
+    /// Signed distance of the CoM's floor projection to the support polygon's edge (m),
+    /// positive inside.
+    pub margin_m: f64,
+    /// What the IK had to clamp (empty for a valid plan).
+    pub issues: Vec<IkIssue>,
+}
+
+/// How the pelvis moves within a phase.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Drive {
+    /// The pelvis goes from one (x, y) to another; the CoM follows.
+    Base { from: Xy, to: Xy },
+    /// The CoM goes from one floor point to another; the pelvis is solved to put it there.
+    Com { from: Xy, to: Xy },
+}
+
+#[derive(Debug, Clone, PartialEq)]
+struct Phase {
+    kind: PhaseKind,
+    start_s: f64,
+    duration_s: f64,
+    /// The foot in the air, for swings; the foot the CoM moves onto, for shifts.
+    side: Option<Side>,
+    step_index: u32,
+    feet_from: [Point3<f64>; 2],
+    feet_to: [Point3<f64>; 2],
+    base_z_from: f64,
+    base_z_to: f64,
+    drive: Drive,
+}
+
+impl Phase {
+    fn end_s(&self) -> f64 {
+        self.start_s + self.duration_s
+    }
+    fn support(&self) -> Support {
+        match (self.kind.is_swing(), self.side) {
+            (true, Some(swing)) => Support::on(swing.other()),
+            _ => Support::Double,
+        }
+    }
+}
+
+/// How many swings are left before the walk closes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Remaining {
+    Swings(u32),
+    UntilStop,
+}
+
+/// The gait planner: feed it requests, call [`Self::update`] once per control tick.
+///
+/// ```
+/// use gait_planner::{GaitParams, GaitPlanner, PhaseKind, WalkRequest};
+/// let model = ik_solver::BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None).unwrap();
+/// let mut planner = GaitPlanner::new(model, GaitParams::default()).unwrap();
+/// planner.request(WalkRequest::Steps(2));
+/// let first = planner.update(0.0).unwrap();
+/// assert_eq!(first.phase, PhaseKind::Crouch);
+/// assert!(first.margin_m > 0.0);
+/// ```
+#[derive(Debug, Clone)]
+pub struct GaitPlanner {
+    model: BipedModel,
+    cfg: GaitConfig,
+    phase: Phase,
+    pending: Option<WalkRequest>,
+    remaining: Remaining,
+    stop: bool,
+    crouched: bool,
+    /// Foot to swing next.
+    next_swing: Side,
+    swings_done: u32,
+    /// The base (x, y) of the last solved tick: the warm start of the next solve.
+    base_xy: Xy,
+    /// CoM (x, y) of the last tick.
+    com_xy: Xy,
+    last_t_s: f64,
+    poses: Vec<Isometry3<f64>>,
+}
+
+/// Results of placing the pelvis for given feet.
+struct Posture {
+    base: Isometry3<f64>,
+    targets: [AnkleTarget; 2],
+    q: Vec<f64>,
+    com: Point3<f64>,
+    issues: Vec<IkIssue>,
+}
+
+impl GaitPlanner {
+    /// A planner standing still at the initial pose, after checking that the parameters
+    /// give a walk whose CoM stays inside the support polygon with the configured margin,
+    /// within reach and joint limits, at every tick of a check walk that has every kind of
+    /// phase. Refuses otherwise, naming the phase and the shortfall.
+    pub fn new(model: BipedModel, params: GaitParams) -> Result<Self, GaitError> {
+        let cfg = params.resolve(&model)?;
+        let planner = Self::unchecked(model, cfg);
+        planner.check_walk()?;
+        Ok(planner)
+    }
+
+    fn unchecked(model: BipedModel, cfg: GaitConfig) -> Self {
+        let feet = Self::initial_feet(&model);
+        let z_stand = Self::stand_base_z(&model);
+        let base_xy = Self::initial_base_xy(&model);
+        let phase = Phase {
+            kind: PhaseKind::Idle,
+            start_s: 0.0,
+            duration_s: f64::INFINITY,
+            side: None,
+            step_index: 0,
+            feet_from: feet,
+            feet_to: feet,
+            base_z_from: z_stand,
+            base_z_to: z_stand,
+            drive: Drive::Base { from: base_xy, to: base_xy },
+        };
+        Self {
+            next_swing: cfg.first_foot,
+            model,
+            cfg,
+            phase,
+            pending: None,
+            remaining: Remaining::Swings(0),
+            stop: false,
+            crouched: false,
+            swings_done: 0,
+            base_xy,
+            com_xy: [0.0, 0.0],
+            last_t_s: f64::NEG_INFINITY,
+            poses: Vec::new(),
+        }
+    }
+
+    /// The resolved parameters.
+    pub fn config(&self) -> &GaitConfig {
+        &self.cfg
+    }
+
+    /// The robot model.
+    pub fn model(&self) -> &BipedModel {
+        &self.model
+    }
+
+    /// The phase of the last update.
+    pub fn phase(&self) -> PhaseKind {
+        self.phase.kind
+    }
+
+    /// True when idle with no request waiting.
+    pub fn is_idle(&self) -> bool {
+        self.phase.kind == PhaseKind::Idle && self.pending.is_none()
+    }
+
+    /// Asks for a walk or a stop; taken at the next phase boundary (at once when idle).
+    pub fn request(&mut self, request: WalkRequest) {
+        // A stop while idle has nothing to stop.
+        if request == WalkRequest::Stop && self.phase.kind == PhaseKind::Idle {
+            self.pending = None;
+            return;
+        }
+        self.pending = Some(request);
+    }
+
+    fn initial_feet(model: &BipedModel) -> [Point3<f64>; 2] {
+        let mid = Self::hips_mid(model);
+        Side::BOTH.map(|s| {
+            let leg = model.leg(s);
+            Point3::new(0.0, leg.hip_in_base_m.y - mid.y, leg.ankle_to_sole_m)
+        })
+    }
+
+    fn hips_mid(model: &BipedModel) -> Vector3<f64> {
+        (model.leg(Side::Left).hip_in_base_m + model.leg(Side::Right).hip_in_base_m) / 2.0
+    }
+
+    fn initial_base_xy(model: &BipedModel) -> Xy {
+        let mid = Self::hips_mid(model);
+        [-mid.x, -mid.y]
+    }
+
+    /// Base height for a hip-point height above the floor.
+    fn base_z(model: &BipedModel, hip_height_m: f64) -> f64 {
+        hip_height_m - Self::hips_mid(model).z
+    }
+
+    /// Base height with straight legs, ankles below the hips.
+    fn stand_base_z(model: &BipedModel) -> f64 {
+        let leg = model.leg(Side::Left);
+        Self::base_z(model, leg.ankle_to_sole_m + leg.hip_roll_to_pitch_m + leg.thigh_m + leg.shin_m)
+    }
+
+    fn walk_base_z(&self) -> f64 {
+        Self::base_z(&self.model, self.cfg.hip_height_m)
+    }
+
+    /// Centre of a foot's sole on the floor, for an ankle position.
+    fn sole_centre(&self, side: Side, ankle: &Point3<f64>) -> Xy {
+        let r = &self.model.leg(side).sole;
+        [ankle.x + (r.x_min_m + r.x_max_m) / 2.0, ankle.y + (r.y_min_m + r.y_max_m) / 2.0]
+    }
+
+    /// The support polygon for the feet carrying the robot.
+    pub fn support_polygon(&self, support: Support, ankles: &[Point3<f64>; 2]) -> Vec<Xy> {
+        let corners = |s: Side| self.model.leg(s).sole.corners([ankles[s.index()].x, ankles[s.index()].y], 0.0);
+        match support {
+            Support::Left => corners(Side::Left).to_vec(),
+            Support::Right => corners(Side::Right).to_vec(),
+            Support::Double => {
+                let mut all = corners(Side::Left).to_vec();
+                all.extend(corners(Side::Right));
+                convex_hull(&all)
+            }
+        }
+    }
+
+    /// Places the pelvis at (x, y, z) and solves both legs for the feet.
+    fn posture(&mut self, base_xy: Xy, base_z: f64, feet: &[Point3<f64>; 2]) -> Result<Posture, GaitError> {
+        let base = Isometry3::from_parts(Translation3::new(base_xy[0], base_xy[1], base_z), UnitQuaternion::identity());
+        let targets = Side::BOTH.map(|s| {
+            let hip = base.translation.vector + self.model.leg(s).hip_in_base_m;
+            AnkleTarget { ankle_in_hip_m: feet[s.index()].coords - hip, foot_yaw_rad: 0.0 }
+        });
+        let mut q = vec![0.0; self.model.robot().dof_count()];
+        let issues = self.model.solve_legs(&targets[0], &targets[1], &mut q).map_err(|e| GaitError::Unreachable {
+            phase: self.phase.kind,
+            t_s: self.last_t_s,
+            issue: e.to_string(),
+        })?;
+        self.model.robot().link_poses_into(&base, &q, &mut self.poses).map_err(|e| GaitError::Unreachable {
+            phase: self.phase.kind,
+            t_s: self.last_t_s,
+            issue: e.to_string(),
+        })?;
+        let com = self.model.robot().center_of_mass(&self.poses);
+        Ok(Posture { base, targets, q, com, issues })
+    }
+
+    /// Finds the pelvis (x, y) that puts the whole-body CoM over `com_goal`, by secant steps
+    /// per axis from the last tick's pelvis (the CoM moves almost linearly with the pelvis,
+    /// a little less since the feet stay put).
+    fn posture_for_com(&mut self, com_goal: Xy, base_z: f64, feet: &[Point3<f64>; 2]) -> Result<Posture, GaitError> {
+        let mut b = self.base_xy;
+        let mut gain = [0.8, 0.8];
+        let mut prev: Option<(Xy, Xy)> = None;
+        let mut best = self.posture(b, base_z, feet)?;
+        for _ in 0..30 {
+            let c = [best.com.x, best.com.y];
+            let err = [com_goal[0] - c[0], com_goal[1] - c[1]];
+            if err[0].abs() < 1e-11 && err[1].abs() < 1e-11 {
+                break;
+            }
+            if let Some((pb, pc)) = prev {
+                for k in 0..2 {
+                    let db = b[k] - pb[k];
+                    if db.abs() > 1e-14 {
+                        let g = (c[k] - pc[k]) / db;
+                        if g.is_finite() && g > 0.1 && g < 2.0 {
+                            gain[k] = g;
+                        }
+                    }
+                }
+            }
+            prev = Some((b, c));
+            b = [b[0] + err[0] / gain[0], b[1] + err[1] / gain[1]];
+            best = self.posture(b, base_z, feet)?;
+        }
+        Ok(best)
+    }
+
+    fn swing_feet(&self, p: f64) -> [Point3<f64>; 2] {
+        let ph = &self.phase;
+        let (from, to) = (ph.feet_from, ph.feet_to);
+        match (ph.kind.is_swing(), ph.side) {
+            (true, Some(swing)) => {
+                let mut feet = from;
+                let (a, b) = (from[swing.index()], to[swing.index()]);
+                let u = swing_advance(p);
+                feet[swing.index()] = Point3::new(
+                    a.x + (b.x - a.x) * u,
+                    a.y + (b.y - a.y) * u,
+                    a.z + (b.z - a.z) * u + self.cfg.foot_lift_m * swing_height(p),
+                );
+                feet
+            }
+            _ => from,
+        }
+    }
+
+    /// The plan for time `t_s` (s, non-decreasing between calls; any origin).
+    pub fn update(&mut self, t_s: f64) -> Result<GaitSample, GaitError> {
+        if !t_s.is_finite() || t_s < self.last_t_s {
+            return Err(GaitError::Time { t_s, previous_s: self.last_t_s });
+        }
+        self.last_t_s = t_s;
+        if self.phase.kind == PhaseKind::Idle && self.pending.is_some() {
+            self.phase.start_s = t_s;
+            self.phase.duration_s = 0.0;
+            self.advance();
+        }
+        // The tick at a phase's end time belongs to that phase (progress 1).
+        while t_s > self.phase.end_s() {
+            self.advance();
+            if self.phase.kind == PhaseKind::Idle {
+                break;
+            }
+        }
+        let ph = self.phase.clone();
+        let p = if ph.duration_s > 0.0 && ph.duration_s.is_finite() { ((t_s - ph.start_s) / ph.duration_s).clamp(0.0, 1.0) } else { 1.0 };
+        let r = min_jerk(p);
+        let feet = self.swing_feet(p);
+        let base_z = ph.base_z_from + (ph.base_z_to - ph.base_z_from) * r;
+        let lerp = |a: Xy, b: Xy| [a[0] + (b[0] - a[0]) * r, a[1] + (b[1] - a[1]) * r];
+        let posture = match ph.drive {
+            Drive::Base { from, to } => self.posture(lerp(from, to), base_z, &feet)?,
+            Drive::Com { from, to } => self.posture_for_com(lerp(from, to), base_z, &feet)?,
+        };
+        self.base_xy = [posture.base.translation.x, posture.base.translation.y];
+        self.com_xy = [posture.com.x, posture.com.y];
+        let support = ph.support();
+        let poly = self.support_polygon(support, &feet);
+        Ok(GaitSample {
+            t_s,
+            phase: ph.kind,
+            support,
+            step_index: ph.step_index,
+            progress: p,
+            base_world: posture.base,
+            ankles_world_m: feet,
+            targets: posture.targets,
+            joints_rad: posture.q,
+            com_world_m: posture.com,
+            margin_m: signed_margin(&poly, self.com_xy),
+            issues: posture.issues,
+        })
+    }
+
+    /// Takes a waiting request into the walk state.
+    fn take_request(&mut self) {
+        match self.pending.take() {
+            Some(WalkRequest::Steps(n)) => {
+                self.remaining = Remaining::Swings(n);
+                self.stop = n == 0;
+            }
+            Some(WalkRequest::UntilStop) => {
+                self.remaining = Remaining::UntilStop;
+                self.stop = false;
+            }
+            Some(WalkRequest::Stop) => self.stop = true,
+            None => {}
+        }
+    }
+
+    fn closing(&self) -> bool {
+        self.stop || self.remaining == Remaining::Swings(0)
+    }
+
+    /// Ends the current phase and starts the next.
+    fn advance(&mut self) {
+        let ended = self.phase.clone();
+        let feet = ended.feet_to;
+        let start_s = ended.end_s();
+        // Count the swing that just landed before taking a request, so a new `Steps(n)`
+        // counts from the next swing.
+        if matches!(ended.kind, PhaseKind::HalfStep | PhaseKind::Step) {
+            if let Remaining::Swings(n) = &mut self.remaining {
+                *n = n.saturating_sub(1);
+            }
+        }
+        self.take_request();
+        let stance_centre = |me: &Self, s: Side| me.sole_centre(s, &feet[s.index()]);
+        let z = self.walk_base_z();
+        let com_now = self.com_xy;
+        let next = match ended.kind {
+            PhaseKind::Idle if self.closing() => None,
+            PhaseKind::Idle if !self.crouched => Some((PhaseKind::Crouch, None)),
+            PhaseKind::Idle | PhaseKind::Crouch => {
+                if self.closing() {
+                    if ended.kind == PhaseKind::Crouch { None } else { Some((PhaseKind::Center, None)) }
+                } else {
+                    Some((PhaseKind::Shift, Some(self.next_swing.other())))
+                }
+            }
+            PhaseKind::Shift => match (self.swings_done > 0, self.closing()) {
+                // Feet still level (no swing yet in this walk): the first swing is a half step.
+                (false, true) => Some((PhaseKind::Center, None)),
+                (false, false) => Some((PhaseKind::HalfStep, Some(self.next_swing))),
+                (true, true) => Some((PhaseKind::FinalHalfStep, Some(self.next_swing))),
+                (true, false) => Some((PhaseKind::Step, Some(self.next_swing))),
+            },
+            PhaseKind::HalfStep | PhaseKind::Step => {
+                let landed = ended.side.unwrap_or(Side::Left);
+                Some((PhaseKind::Shift, Some(landed)))
+            }
+            PhaseKind::FinalHalfStep => Some((PhaseKind::Center, None)),
+            PhaseKind::Center if self.cfg.rise_at_end => Some((PhaseKind::Rise, None)),
+            PhaseKind::Center | PhaseKind::Rise => None,
+        };
+        let Some((kind, side)) = next else {
+            if ended.kind == PhaseKind::Rise {
+                self.crouched = false;
+            }
+            self.stop = false;
+            self.remaining = Remaining::Swings(0);
+            self.phase = Phase {
+                kind: PhaseKind::Idle,
+                start_s,
+                duration_s: f64::INFINITY,
+                side: None,
+                step_index: ended.step_index,
+                feet_from: feet,
+                feet_to: feet,
+                base_z_from: ended.base_z_to,
+                base_z_to: ended.base_z_to,
+                drive: Drive::Base { from: self.base_xy, to: self.base_xy },
+            };
+            // A request that came during the closing phases starts a new walk now.
+            return;
+        };
+        let cfg = &self.cfg;
+        let mut phase = Phase {
+            kind,
+            start_s,
+            duration_s: cfg.shift_duration_s,
+            side,
+            step_index: ended.step_index,
+            feet_from: feet,
+            feet_to: feet,
+            base_z_from: z,
+            base_z_to: z,
+            drive: Drive::Base { from: self.base_xy, to: self.base_xy },
+        };
+        match kind {
+            PhaseKind::Crouch | PhaseKind::Rise => {
+                let (from, to) = if kind == PhaseKind::Crouch {
+                    (Self::stand_base_z(&self.model), z)
+                } else {
+                    (z, Self::stand_base_z(&self.model))
+                };
+                (phase.base_z_from, phase.base_z_to) = (from, to);
+                phase.duration_s = cfg.crouch_duration_s;
+                if kind == PhaseKind::Rise {
+                    // Straight legs reach only straight down: end with the hips over the ankles.
+                    let mid = Self::hips_mid(&self.model);
+                    let over = [(feet[0].x + feet[1].x) / 2.0 - mid.x, (feet[0].y + feet[1].y) / 2.0 - mid.y];
+                    phase.drive = Drive::Base { from: self.base_xy, to: over };
+                }
+                if kind == PhaseKind::Crouch {
+                    self.crouched = true;
+                    self.swings_done = 0;
+                }
+            }
+            PhaseKind::Shift => {
+                let onto = side.unwrap_or(Side::Left);
+                phase.drive = Drive::Com { from: com_now, to: stance_centre(self, onto) };
+            }
+            PhaseKind::HalfStep | PhaseKind::Step | PhaseKind::FinalHalfStep => {
+                let swing = side.unwrap_or(Side::Left);
+                let stance = swing.other();
+                let ahead = match kind {
+                    PhaseKind::FinalHalfStep => 0.0,
+                    _ => cfg.step_length_m,
+                };
+                let mut to = feet;
+                to[swing.index()].x = feet[stance.index()].x + ahead;
+                phase.feet_to = to;
+                phase.duration_s = cfg.step_duration_s;
+                phase.step_index = ended.step_index + 1;
+                let c = stance_centre(self, stance);
+                phase.drive = Drive::Com { from: c, to: c };
+                self.next_swing = stance;
+                self.swings_done += 1;
+            }
+            PhaseKind::Center => {
+                let mid = {
+                    let (l, r) = (stance_centre(self, Side::Left), stance_centre(self, Side::Right));
+                    [(l[0] + r[0]) / 2.0, (l[1] + r[1]) / 2.0]
+                };
+                phase.drive = Drive::Com { from: com_now, to: mid };
+                self.next_swing = cfg.first_foot;
+            }
+            PhaseKind::Idle => {}
+        }
+        self.phase = phase;
+    }
+
+    /// Runs a whole check walk with every kind of phase on a copy of this planner and
+    /// refuses parameters that leave the CoM margin below the minimum, need an unreachable
+    /// ankle position or a joint limit, or move a joint faster than its limit.
+    fn check_walk(&self) -> Result<(), GaitError> {
+        let mut check = Self::unchecked(self.model.clone(), self.cfg.clone());
+        let samples = check.plan(WalkRequest::Steps(3))?;
+        let dt = self.cfg.dt_s();
+        let robot = self.model.robot();
+        for (k, s) in samples.iter().enumerate() {
+            if let Some(issue) = s.issues.first() {
+                return Err(GaitError::Unreachable { phase: s.phase, t_s: s.t_s, issue: issue.to_string() });
+            }
+            if s.margin_m < self.cfg.min_com_margin_m {
+                let detail = match s.support {
+                    Support::Double => "both feet on the floor".to_string(),
+                    Support::Left => "right foot swinging".to_string(),
+                    Support::Right => "left foot swinging".to_string(),
+                };
+                return Err(GaitError::Unstable { phase: s.phase, detail, t_s: s.t_s, margin_m: s.margin_m, min_m: self.cfg.min_com_margin_m });
+            }
+            if k > 0 {
+                for (d, (&a, &b)) in samples[k - 1].joints_rad.iter().zip(&s.joints_rad).enumerate() {
+                    let j = &robot.joints()[robot.dof_joints()[d]];
+                    let v = (b - a).abs() / dt;
+                    if let Some(l) = j.limits.filter(|l| v > l.velocity) {
+                        return Err(GaitError::TooFast { phase: s.phase, t_s: s.t_s, joint: j.name.clone(), velocity_rad_s: v, limit_rad_s: l.velocity });
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Plans a whole walk offline: from the first tick of `request` at t = 0 to the tick at
+    /// which the planner is idle again, one sample per control period.
+    pub fn plan(&mut self, request: WalkRequest) -> Result<Vec<GaitSample>, GaitError> {
+        if let WalkRequest::Steps(0) | WalkRequest::Stop | WalkRequest::UntilStop = request {
+            return Err(GaitError::Request(format!("{request:?}: an offline plan needs a number of steps of at least 1")));
+        }
+        self.request(request);
+        let rate = self.cfg.control_rate_hz;
+        let mut out = Vec::new();
+        let t0 = if self.last_t_s.is_finite() { self.last_t_s } else { 0.0 };
+        for k in 0.. {
+            // k / rate, not k * dt: exact for decimal rates, so times print as written.
+            let s = self.update(t0 + k as f64 / rate)?;
+            let done = s.phase == PhaseKind::Idle;
+            if done {
+                break;
+            }
+            out.push(s);
+            if k > 10_000_000 {
+                break;
+            }
+        }
+        Ok(out)
+    }
+}
+
+/// Plans `steps` steps of the default walk for a robot and parameters: the samples of every
+/// tick from the start of the crouch to the end of the closing phase.
+pub fn plan_walk(model: BipedModel, params: GaitParams, steps: u32) -> Result<Vec<GaitSample>, GaitError> {
+    GaitPlanner::new(model, params)?.plan(WalkRequest::Steps(steps))
+}

@@ -1,0 +1,41 @@
+//! Time profiles of the walk: the smooth ramp every phase uses, and the swing-ankle curve of
+//! the paper's Fig. 17, both as closed forms of the phase progress `p` in [0, 1].
+
+/// Minimum-jerk ramp from 0 to 1: `10p³ - 15p⁴ + 6p⁵`. Zero velocity and acceleration at
+/// both ends, so every phase starts and ends at rest (the paper's `ProgresoTemporal` is a
+/// linear ramp, whose velocity jumps at the phase ends). `p` outside [0, 1] is clamped.
+///
+/// ```
+/// use gait_planner::trajectory::min_jerk;
+/// assert_eq!(min_jerk(0.0), 0.0);
+/// assert_eq!(min_jerk(0.5), 0.5);
+/// assert_eq!(min_jerk(1.0), 1.0);
+/// ```
+pub fn min_jerk(p: f64) -> f64 {
+    let p = p.clamp(0.0, 1.0);
+    p * p * p * (10.0 + p * (-15.0 + 6.0 * p))
+}
+
+/// Part of the swing spent lifting before the foot starts forward (and, mirrored, lowering
+/// after it stops).
+pub const SWING_LIFT_FRACTION: f64 = 0.2;
+
+/// Height of the swing ankle above its lift-off height, as a fraction of the foot lift:
+/// `s(4p(1-p))` with the smoothstep `s(v) = v²(3 - 2v)`.
+///
+/// It has zero slope at lift-off and touch-down (no stamp), rises steeply through the first
+/// fifth of the swing (70% of the lift is reached at p = 0.2), is nearly flat over the middle
+/// while the foot travels forward, peaks at p = 0.5 and comes down as steeply as it rose:
+/// the shape of the paper's Fig. 17, with the zero end velocities the paper lacks.
+pub fn swing_height(p: f64) -> f64 {
+    let p = p.clamp(0.0, 1.0);
+    let v = 4.0 * p * (1.0 - p);
+    v * v * (3.0 - 2.0 * v)
+}
+
+/// Forward travel of the swing ankle as a fraction of the step: a minimum-jerk ramp over
+/// `p` in [0.2, 0.8], still before and after, so the foot leaves and meets the floor
+/// vertically and never scuffs.
+pub fn swing_advance(p: f64) -> f64 {
+    min_jerk((p - SWING_LIFT_FRACTION) / (1.0 - 2.0 * SWING_LIFT_FRACTION))
+}

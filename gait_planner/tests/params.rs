@@ -1,0 +1,89 @@
+//! The parameter file: ROS 2 layout, defaults, bounds, unknown keys, derived values.
+
+mod common;
+use common::*;
+use gait_planner::{GaitError, GaitParams};
+use ik_solver::Side;
+
+#[test]
+fn the_shipped_file_gives_the_defaults() {
+    let p = GaitParams::from_ros_yaml_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../config/gait.yaml")).unwrap();
+    assert_eq!(p, GaitParams::default());
+}
+
+#[test]
+fn auto_values_scale_with_the_robot() {
+    // Default robot: L1 = L2 = 0.09, ankle-to-sole 0.03, sole 0.10 x 0.06.
+    let c = GaitParams::default().resolve(&default_model()).unwrap();
+    assert!((c.step_length_m - 0.045).abs() < 1e-12);
+    assert!((c.foot_lift_m - 0.0216).abs() < 1e-12);
+    assert!((c.hip_height_m - (0.03 + 0.85 * 0.18)).abs() < 1e-12);
+    assert!((c.min_com_margin_m - 0.01).abs() < 1e-12);
+    // Test biped: L1 0.11, L2 0.10, hip offset 0.015, ankle-to-sole 0.035, sole 0.12 x 0.07.
+    let c = GaitParams::default().resolve(&biped6_model()).unwrap();
+    assert!((c.hip_height_m - (0.035 + 0.015 + 0.85 * 0.21)).abs() < 1e-12);
+    assert!((c.min_com_margin_m - 0.07 / 6.0).abs() < 1e-12);
+}
+
+#[test]
+fn node_section_overrides_the_wildcard_and_other_nodes_are_ignored() {
+    let yaml = r#"
+/**:
+  ros__parameters:
+    control_rate_hz: 50.0
+    use_sim_time: true
+ik_solver:
+  ros__parameters:
+    whatever: 1
+/robot/gait_planner:
+  ros__parameters:
+    step_length_m: 0.03
+    first_foot: right
+"#;
+    let p = GaitParams::from_ros_yaml_str(yaml).unwrap();
+    assert_eq!(p.control_rate_hz, 50.0);
+    assert_eq!(p.step_length_m, 0.03);
+    assert_eq!(p.first_foot, Side::Right);
+    assert_eq!(p.step_duration_s, 1.0);
+}
+
+#[test]
+fn unknown_keys_and_wrong_types_are_named() {
+    let e = GaitParams::from_ros_yaml_str("gait_planner:\n  ros__parameters:\n    step_lenght_m: 0.03\n").unwrap_err();
+    assert!(matches!(e, GaitError::ParamFile { .. }));
+    assert!(e.to_string().contains("step_lenght_m"), "{e}");
+    let e = GaitParams::from_ros_yaml_str("gait_planner:\n  ros__parameters:\n    step_duration_s: fast\n").unwrap_err();
+    assert!(e.to_string().contains("step_duration_s") || e.to_string().contains("f64"), "{e}");
+    let e = GaitParams::from_ros_yaml_str("gait_planner:\n  ros__parameters:\n    first_foot: middle\n").unwrap_err();
+    assert!(e.to_string().contains("middle"), "{e}");
+    let e = GaitParams::from_ros_yaml_str("ik_solver:\n  ros__parameters: {}\n").unwrap_err();
+    assert!(e.to_string().contains("gait_planner"), "{e}");
+    let e = GaitParams::from_ros_yaml_str("gait_planner: [1, 2\n").unwrap_err();
+    assert!(matches!(e, GaitError::ParamFile { .. }));
+    let e = GaitParams::from_ros_yaml_file("/nonexistent/gait.yaml").unwrap_err();
+    assert!(e.to_string().contains("/nonexistent/gait.yaml"), "{e}");
+}
+
+#[test]
+fn out_of_bounds_values_name_the_key_and_value() {
+    let model = default_model();
+    let cases = [
+        (GaitParams { control_rate_hz: 2000.0, ..GaitParams::default() }, "control_rate_hz", 2000.0),
+        (GaitParams { step_duration_s: 0.0, ..GaitParams::default() }, "step_duration_s", 0.0),
+        (GaitParams { shift_duration_s: f64::NAN, ..GaitParams::default() }, "shift_duration_s", f64::NAN),
+        (GaitParams { step_length_m: -0.01, ..GaitParams::default() }, "step_length_m", -0.01),
+        (GaitParams { hip_height_m: 0.5, ..GaitParams::default() }, "hip_height_m", 0.5),
+        (GaitParams { foot_lift_m: 1.0, ..GaitParams::default() }, "foot_lift_m", 1.0),
+    ];
+    for (p, key, value) in cases {
+        match p.resolve(&model) {
+            Err(GaitError::Param { key: k, value: v, .. }) => {
+                assert_eq!(k, key);
+                assert!(v == value || (v.is_nan() && value.is_nan()));
+            }
+            other => panic!("{key}: wanted a Param error, got {other:?}"),
+        }
+    }
+    let msg = GaitParams { control_rate_hz: 2000.0, ..GaitParams::default() }.resolve(&model).unwrap_err().to_string();
+    assert!(msg.contains("control_rate_hz") && msg.contains("2000") && msg.contains("Hz"), "{msg}");
+}
