@@ -107,12 +107,26 @@ fn check(key: &'static str, value: f64, lo: f64, hi: f64, unit: &str) -> Result<
     if value.is_finite() && value >= lo && value <= hi {
         Ok(value)
     } else {
-        Err(GaitError::Param { key, value, why: format!("must be within [{lo}, {hi}] {unit}") })
+        Err(GaitError::Param {
+            key,
+            value,
+            why: format!("must be within [{lo}, {hi}] {unit}"),
+        })
     }
 }
 
-fn auto_or(key: &'static str, value: f64, derived: f64, lo: f64, hi: f64) -> Result<f64, GaitError> {
-    if value == 0.0 { check(key, derived, lo, hi, "m (derived from the robot)") } else { check(key, value, lo, hi, "m (0 = auto)") }
+fn auto_or(
+    key: &'static str,
+    value: f64,
+    derived: f64,
+    lo: f64,
+    hi: f64,
+) -> Result<f64, GaitError> {
+    if value == 0.0 {
+        check(key, derived, lo, hi, "m (derived from the robot)")
+    } else {
+        check(key, value, lo, hi, "m (0 = auto)")
+    }
 }
 
 impl GaitParams {
@@ -134,10 +148,16 @@ impl GaitParams {
     }
 
     fn from_ros_yaml(text: &str, path: Option<String>) -> Result<Self, GaitError> {
-        let err = |message: String| GaitError::ParamFile { path: path.clone(), message };
-        let doc: serde_norway::Value = serde_norway::from_str(text).map_err(|e| err(e.to_string()))?;
+        let err = |message: String| GaitError::ParamFile {
+            path: path.clone(),
+            message,
+        };
+        let doc: serde_norway::Value =
+            serde_norway::from_str(text).map_err(|e| err(e.to_string()))?;
         let Some(top) = doc.as_mapping() else {
-            return Err(err("the file is not a mapping of node names to `ros__parameters`".into()));
+            return Err(err(
+                "the file is not a mapping of node names to `ros__parameters`".into(),
+            ));
         };
         let mut merged = serde_norway::Mapping::new();
         let mut found = false;
@@ -169,7 +189,8 @@ impl GaitParams {
         if !found && merged.is_empty() {
             return Err(err("no `gait_planner:` section".into()));
         }
-        serde_norway::from_value(serde_norway::Value::Mapping(merged)).map_err(|e| err(format!("gait_planner.ros__parameters: {e}")))
+        serde_norway::from_value(serde_norway::Value::Mapping(merged))
+            .map_err(|e| err(format!("gait_planner.ros__parameters: {e}")))
     }
 
     fn is_known(name: &str) -> bool {
@@ -184,15 +205,32 @@ impl GaitParams {
         let left = model.leg(Side::Left);
         let right = model.leg(Side::Right);
         let leg = (left.thigh_m + left.shin_m).min(right.thigh_m + right.shin_m);
-        let sole_width = left.sole.width_m().min(left.sole.length_m()).min(right.sole.width_m()).min(right.sole.length_m());
+        let sole_width = left
+            .sole
+            .width_m()
+            .min(left.sole.length_m())
+            .min(right.sole.width_m())
+            .min(right.sole.length_m());
         let hip_lo = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + 0.5 * leg;
         let hip_hi = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + leg;
         Ok(GaitConfig {
-            step_length_m: auto_or("step_length_m", self.step_length_m, auto::STEP_LENGTH_PER_LEG * leg, 0.0, 0.6 * leg)?,
+            step_length_m: auto_or(
+                "step_length_m",
+                self.step_length_m,
+                auto::STEP_LENGTH_PER_LEG * leg,
+                0.0,
+                0.6 * leg,
+            )?,
             step_duration_s: check("step_duration_s", self.step_duration_s, 0.1, 60.0, "s")?,
             shift_duration_s: check("shift_duration_s", self.shift_duration_s, 0.1, 60.0, "s")?,
             crouch_duration_s: check("crouch_duration_s", self.crouch_duration_s, 0.1, 60.0, "s")?,
-            foot_lift_m: auto_or("foot_lift_m", self.foot_lift_m, auto::FOOT_LIFT_PER_LEG * leg, 0.001, 0.4 * leg)?,
+            foot_lift_m: auto_or(
+                "foot_lift_m",
+                self.foot_lift_m,
+                auto::FOOT_LIFT_PER_LEG * leg,
+                0.001,
+                0.4 * leg,
+            )?,
             hip_height_m: auto_or(
                 "hip_height_m",
                 self.hip_height_m,

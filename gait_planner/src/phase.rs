@@ -44,7 +44,10 @@ impl PhaseKind {
     }
     /// True for the phases where one foot is in the air.
     pub fn is_swing(self) -> bool {
-        matches!(self, PhaseKind::HalfStep | PhaseKind::Step | PhaseKind::FinalHalfStep)
+        matches!(
+            self,
+            PhaseKind::HalfStep | PhaseKind::Step | PhaseKind::FinalHalfStep
+        )
     }
 }
 

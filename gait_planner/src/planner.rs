@@ -154,7 +154,10 @@ impl GaitPlanner {
             feet_to: feet,
             base_z_from: z_stand,
             base_z_to: z_stand,
-            drive: Drive::Base { from: base_xy, to: base_xy },
+            drive: Drive::Base {
+                from: base_xy,
+                to: base_xy,
+            },
         };
         Self {
             next_swing: cfg.first_foot,
@@ -228,7 +231,10 @@ impl GaitPlanner {
     /// Base height with straight legs, ankles below the hips.
     fn stand_base_z(model: &BipedModel) -> f64 {
         let leg = model.leg(Side::Left);
-        Self::base_z(model, leg.ankle_to_sole_m + leg.hip_roll_to_pitch_m + leg.thigh_m + leg.shin_m)
+        Self::base_z(
+            model,
+            leg.ankle_to_sole_m + leg.hip_roll_to_pitch_m + leg.thigh_m + leg.shin_m,
+        )
     }
 
     fn walk_base_z(&self) -> f64 {
@@ -238,12 +244,20 @@ impl GaitPlanner {
     /// Centre of a foot's sole on the floor, for an ankle position.
     fn sole_centre(&self, side: Side, ankle: &Point3<f64>) -> Xy {
         let r = &self.model.leg(side).sole;
-        [ankle.x + (r.x_min_m + r.x_max_m) / 2.0, ankle.y + (r.y_min_m + r.y_max_m) / 2.0]
+        [
+            ankle.x + (r.x_min_m + r.x_max_m) / 2.0,
+            ankle.y + (r.y_min_m + r.y_max_m) / 2.0,
+        ]
     }
 
     /// The support polygon for the feet carrying the robot.
     pub fn support_polygon(&self, support: Support, ankles: &[Point3<f64>; 2]) -> Vec<Xy> {
-        let corners = |s: Side| self.model.leg(s).sole.corners([ankles[s.index()].x, ankles[s.index()].y], 0.0);
+        let corners = |s: Side| {
+            self.model
+                .leg(s)
+                .sole
+                .corners([ankles[s.index()].x, ankles[s.index()].y], 0.0)
+        };
         match support {
             Support::Left => corners(Side::Left).to_vec(),
             Support::Right => corners(Side::Right).to_vec(),
@@ -256,31 +270,59 @@ impl GaitPlanner {
     }
 
     /// Places the pelvis at (x, y, z) and solves both legs for the feet.
-    fn posture(&mut self, base_xy: Xy, base_z: f64, feet: &[Point3<f64>; 2]) -> Result<Posture, GaitError> {
-        let base = Isometry3::from_parts(Translation3::new(base_xy[0], base_xy[1], base_z), UnitQuaternion::identity());
+    fn posture(
+        &mut self,
+        base_xy: Xy,
+        base_z: f64,
+        feet: &[Point3<f64>; 2],
+    ) -> Result<Posture, GaitError> {
+        let base = Isometry3::from_parts(
+            Translation3::new(base_xy[0], base_xy[1], base_z),
+            UnitQuaternion::identity(),
+        );
         let targets = Side::BOTH.map(|s| {
             let hip = base.translation.vector + self.model.leg(s).hip_in_base_m;
-            AnkleTarget { ankle_in_hip_m: feet[s.index()].coords - hip, foot_yaw_rad: 0.0 }
+            AnkleTarget {
+                ankle_in_hip_m: feet[s.index()].coords - hip,
+                foot_yaw_rad: 0.0,
+            }
         });
         let mut q = vec![0.0; self.model.robot().dof_count()];
-        let issues = self.model.solve_legs(&targets[0], &targets[1], &mut q).map_err(|e| GaitError::Unreachable {
-            phase: self.phase.kind,
-            t_s: self.last_t_s,
-            issue: e.to_string(),
-        })?;
-        self.model.robot().link_poses_into(&base, &q, &mut self.poses).map_err(|e| GaitError::Unreachable {
-            phase: self.phase.kind,
-            t_s: self.last_t_s,
-            issue: e.to_string(),
-        })?;
+        let issues = self
+            .model
+            .solve_legs(&targets[0], &targets[1], &mut q)
+            .map_err(|e| GaitError::Unreachable {
+                phase: self.phase.kind,
+                t_s: self.last_t_s,
+                issue: e.to_string(),
+            })?;
+        self.model
+            .robot()
+            .link_poses_into(&base, &q, &mut self.poses)
+            .map_err(|e| GaitError::Unreachable {
+                phase: self.phase.kind,
+                t_s: self.last_t_s,
+                issue: e.to_string(),
+            })?;
         let com = self.model.robot().center_of_mass(&self.poses);
-        Ok(Posture { base, targets, q, com, issues })
+        Ok(Posture {
+            base,
+            targets,
+            q,
+            com,
+            issues,
+        })
     }
 
     /// Finds the pelvis (x, y) that puts the whole-body CoM over `com_goal`, by secant steps
     /// per axis from the last tick's pelvis (the CoM moves almost linearly with the pelvis,
     /// a little less since the feet stay put).
-    fn posture_for_com(&mut self, com_goal: Xy, base_z: f64, feet: &[Point3<f64>; 2]) -> Result<Posture, GaitError> {
+    fn posture_for_com(
+        &mut self,
+        com_goal: Xy,
+        base_z: f64,
+        feet: &[Point3<f64>; 2],
+    ) -> Result<Posture, GaitError> {
         let mut b = self.base_xy;
         let mut gain = [0.8, 0.8];
         let mut prev: Option<(Xy, Xy)> = None;
@@ -331,7 +373,10 @@ impl GaitPlanner {
     /// The plan for time `t_s` (s, non-decreasing between calls; any origin).
     pub fn update(&mut self, t_s: f64) -> Result<GaitSample, GaitError> {
         if !t_s.is_finite() || t_s < self.last_t_s {
-            return Err(GaitError::Time { t_s, previous_s: self.last_t_s });
+            return Err(GaitError::Time {
+                t_s,
+                previous_s: self.last_t_s,
+            });
         }
         self.last_t_s = t_s;
         if self.phase.kind == PhaseKind::Idle && self.pending.is_some() {
@@ -347,7 +392,11 @@ impl GaitPlanner {
             }
         }
         let ph = self.phase.clone();
-        let p = if ph.duration_s > 0.0 && ph.duration_s.is_finite() { ((t_s - ph.start_s) / ph.duration_s).clamp(0.0, 1.0) } else { 1.0 };
+        let p = if ph.duration_s > 0.0 && ph.duration_s.is_finite() {
+            ((t_s - ph.start_s) / ph.duration_s).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
         let r = min_jerk(p);
         let feet = self.swing_feet(p);
         let base_z = ph.base_z_from + (ph.base_z_to - ph.base_z_from) * r;
@@ -403,10 +452,10 @@ impl GaitPlanner {
         let start_s = ended.end_s();
         // Count the swing that just landed before taking a request, so a new `Steps(n)`
         // counts from the next swing.
-        if matches!(ended.kind, PhaseKind::HalfStep | PhaseKind::Step) {
-            if let Remaining::Swings(n) = &mut self.remaining {
-                *n = n.saturating_sub(1);
-            }
+        if let (PhaseKind::HalfStep | PhaseKind::Step, Remaining::Swings(n)) =
+            (ended.kind, &mut self.remaining)
+        {
+            *n = n.saturating_sub(1);
         }
         self.take_request();
         let stance_centre = |me: &Self, s: Side| me.sole_centre(s, &feet[s.index()]);
@@ -417,7 +466,11 @@ impl GaitPlanner {
             PhaseKind::Idle if !self.crouched => Some((PhaseKind::Crouch, None)),
             PhaseKind::Idle | PhaseKind::Crouch => {
                 if self.closing() {
-                    if ended.kind == PhaseKind::Crouch { None } else { Some((PhaseKind::Center, None)) }
+                    if ended.kind == PhaseKind::Crouch {
+                        None
+                    } else {
+                        Some((PhaseKind::Center, None))
+                    }
                 } else {
                     Some((PhaseKind::Shift, Some(self.next_swing.other())))
                 }
@@ -453,7 +506,10 @@ impl GaitPlanner {
                 feet_to: feet,
                 base_z_from: ended.base_z_to,
                 base_z_to: ended.base_z_to,
-                drive: Drive::Base { from: self.base_xy, to: self.base_xy },
+                drive: Drive::Base {
+                    from: self.base_xy,
+                    to: self.base_xy,
+                },
             };
             // A request that came during the closing phases starts a new walk now.
             return;
@@ -469,7 +525,10 @@ impl GaitPlanner {
             feet_to: feet,
             base_z_from: z,
             base_z_to: z,
-            drive: Drive::Base { from: self.base_xy, to: self.base_xy },
+            drive: Drive::Base {
+                from: self.base_xy,
+                to: self.base_xy,
+            },
         };
         match kind {
             PhaseKind::Crouch | PhaseKind::Rise => {
@@ -483,8 +542,14 @@ impl GaitPlanner {
                 if kind == PhaseKind::Rise {
                     // Straight legs reach only straight down: end with the hips over the ankles.
                     let mid = Self::hips_mid(&self.model);
-                    let over = [(feet[0].x + feet[1].x) / 2.0 - mid.x, (feet[0].y + feet[1].y) / 2.0 - mid.y];
-                    phase.drive = Drive::Base { from: self.base_xy, to: over };
+                    let over = [
+                        (feet[0].x + feet[1].x) / 2.0 - mid.x,
+                        (feet[0].y + feet[1].y) / 2.0 - mid.y,
+                    ];
+                    phase.drive = Drive::Base {
+                        from: self.base_xy,
+                        to: over,
+                    };
                 }
                 if kind == PhaseKind::Crouch {
                     self.crouched = true;
@@ -493,7 +558,10 @@ impl GaitPlanner {
             }
             PhaseKind::Shift => {
                 let onto = side.unwrap_or(Side::Left);
-                phase.drive = Drive::Com { from: com_now, to: stance_centre(self, onto) };
+                phase.drive = Drive::Com {
+                    from: com_now,
+                    to: stance_centre(self, onto),
+                };
             }
             PhaseKind::HalfStep | PhaseKind::Step | PhaseKind::FinalHalfStep => {
                 let swing = side.unwrap_or(Side::Left);
@@ -514,10 +582,16 @@ impl GaitPlanner {
             }
             PhaseKind::Center => {
                 let mid = {
-                    let (l, r) = (stance_centre(self, Side::Left), stance_centre(self, Side::Right));
+                    let (l, r) = (
+                        stance_centre(self, Side::Left),
+                        stance_centre(self, Side::Right),
+                    );
                     [(l[0] + r[0]) / 2.0, (l[1] + r[1]) / 2.0]
                 };
-                phase.drive = Drive::Com { from: com_now, to: mid };
+                phase.drive = Drive::Com {
+                    from: com_now,
+                    to: mid,
+                };
                 self.next_swing = cfg.first_foot;
             }
             PhaseKind::Idle => {}
@@ -535,7 +609,11 @@ impl GaitPlanner {
         let robot = self.model.robot();
         for (k, s) in samples.iter().enumerate() {
             if let Some(issue) = s.issues.first() {
-                return Err(GaitError::Unreachable { phase: s.phase, t_s: s.t_s, issue: issue.to_string() });
+                return Err(GaitError::Unreachable {
+                    phase: s.phase,
+                    t_s: s.t_s,
+                    issue: issue.to_string(),
+                });
             }
             if s.margin_m < self.cfg.min_com_margin_m {
                 let detail = match s.support {
@@ -543,14 +621,31 @@ impl GaitPlanner {
                     Support::Left => "right foot swinging".to_string(),
                     Support::Right => "left foot swinging".to_string(),
                 };
-                return Err(GaitError::Unstable { phase: s.phase, detail, t_s: s.t_s, margin_m: s.margin_m, min_m: self.cfg.min_com_margin_m });
+                return Err(GaitError::Unstable {
+                    phase: s.phase,
+                    detail,
+                    t_s: s.t_s,
+                    margin_m: s.margin_m,
+                    min_m: self.cfg.min_com_margin_m,
+                });
             }
             if k > 0 {
-                for (d, (&a, &b)) in samples[k - 1].joints_rad.iter().zip(&s.joints_rad).enumerate() {
+                for (d, (&a, &b)) in samples[k - 1]
+                    .joints_rad
+                    .iter()
+                    .zip(&s.joints_rad)
+                    .enumerate()
+                {
                     let j = &robot.joints()[robot.dof_joints()[d]];
                     let v = (b - a).abs() / dt;
                     if let Some(l) = j.limits.filter(|l| v > l.velocity) {
-                        return Err(GaitError::TooFast { phase: s.phase, t_s: s.t_s, joint: j.name.clone(), velocity_rad_s: v, limit_rad_s: l.velocity });
+                        return Err(GaitError::TooFast {
+                            phase: s.phase,
+                            t_s: s.t_s,
+                            joint: j.name.clone(),
+                            velocity_rad_s: v,
+                            limit_rad_s: l.velocity,
+                        });
                     }
                 }
             }
@@ -562,12 +657,18 @@ impl GaitPlanner {
     /// which the planner is idle again, one sample per control period.
     pub fn plan(&mut self, request: WalkRequest) -> Result<Vec<GaitSample>, GaitError> {
         if let WalkRequest::Steps(0) | WalkRequest::Stop | WalkRequest::UntilStop = request {
-            return Err(GaitError::Request(format!("{request:?}: an offline plan needs a number of steps of at least 1")));
+            return Err(GaitError::Request(format!(
+                "{request:?}: an offline plan needs a number of steps of at least 1"
+            )));
         }
         self.request(request);
         let rate = self.cfg.control_rate_hz;
         let mut out = Vec::new();
-        let t0 = if self.last_t_s.is_finite() { self.last_t_s } else { 0.0 };
+        let t0 = if self.last_t_s.is_finite() {
+            self.last_t_s
+        } else {
+            0.0
+        };
         for k in 0.. {
             // k / rate, not k * dt: exact for decimal rates, so times print as written.
             let s = self.update(t0 + k as f64 / rate)?;
@@ -586,6 +687,10 @@ impl GaitPlanner {
 
 /// Plans `steps` steps of the default walk for a robot and parameters: the samples of every
 /// tick from the start of the crouch to the end of the closing phase.
-pub fn plan_walk(model: BipedModel, params: GaitParams, steps: u32) -> Result<Vec<GaitSample>, GaitError> {
+pub fn plan_walk(
+    model: BipedModel,
+    params: GaitParams,
+    steps: u32,
+) -> Result<Vec<GaitSample>, GaitError> {
     GaitPlanner::new(model, params)?.plan(WalkRequest::Steps(steps))
 }

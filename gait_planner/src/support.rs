@@ -19,9 +19,15 @@ pub fn convex_hull(points: &[Xy]) -> Vec<Xy> {
     let mut hull: Vec<Xy> = Vec::with_capacity(2 * pts.len());
     for pass in 0..2 {
         let start = hull.len();
-        let iter: Box<dyn Iterator<Item = &Xy>> = if pass == 0 { Box::new(pts.iter()) } else { Box::new(pts.iter().rev()) };
+        let iter: Box<dyn Iterator<Item = &Xy>> = if pass == 0 {
+            Box::new(pts.iter())
+        } else {
+            Box::new(pts.iter().rev())
+        };
         for &p in iter {
-            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+            while hull.len() >= start + 2
+                && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0
+            {
                 hull.pop();
             }
             hull.push(p);
@@ -34,7 +40,11 @@ pub fn convex_hull(points: &[Xy]) -> Vec<Xy> {
 fn segment_distance(p: Xy, a: Xy, b: Xy) -> f64 {
     let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
     let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 { (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let t = if len2 > 0.0 {
+        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
 }
 
@@ -63,6 +73,8 @@ pub fn signed_margin(poly: &[Xy], p: Xy) -> f64 {
     if inside >= 0.0 {
         inside
     } else {
-        -(0..n).map(|i| segment_distance(p, poly[i], poly[(i + 1) % n])).fold(f64::INFINITY, f64::min)
+        -(0..n)
+            .map(|i| segment_distance(p, poly[i], poly[(i + 1) % n]))
+            .fold(f64::INFINITY, f64::min)
     }
 }

@@ -9,7 +9,8 @@ pub fn default_model() -> BipedModel {
 }
 
 pub fn biped6_model() -> BipedModel {
-    BipedModel::from_urdf_str(include_str!("../../tests/data/biped6_renamed.urdf"), None).expect("test biped")
+    BipedModel::from_urdf_str(include_str!("../../tests/data/biped6_renamed.urdf"), None)
+        .expect("test biped")
 }
 
 pub fn planner(params: GaitParams) -> GaitPlanner {
@@ -17,7 +18,9 @@ pub fn planner(params: GaitParams) -> GaitPlanner {
 }
 
 pub fn plan(steps: u32, params: GaitParams) -> Vec<GaitSample> {
-    planner(params).plan(WalkRequest::Steps(steps)).expect("plan")
+    planner(params)
+        .plan(WalkRequest::Steps(steps))
+        .expect("plan")
 }
 
 /// Phases in order, consecutive repeats merged, with the swinging foot (L/R) on swings.
@@ -42,7 +45,11 @@ pub fn sequence(samples: &[GaitSample]) -> Vec<String> {
 /// Hand-written expected sequence: `steps` swings starting with `first`.
 pub fn expected(steps: u32, first: Side) -> Vec<String> {
     let f = |s: Side| if s == Side::Left { "L" } else { "R" };
-    let mut v = vec!["crouch".to_string(), "shift".to_string(), format!("half_step({})", f(first))];
+    let mut v = vec![
+        "crouch".to_string(),
+        "shift".to_string(),
+        format!("half_step({})", f(first)),
+    ];
     let mut swing = first;
     for _ in 1..steps {
         swing = swing.other();

@@ -7,7 +7,9 @@ use ik_solver::Side;
 
 #[test]
 fn the_shipped_file_gives_the_defaults() {
-    let p = GaitParams::from_ros_yaml_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../config/gait.yaml")).unwrap();
+    let p =
+        GaitParams::from_ros_yaml_file(concat!(env!("CARGO_MANIFEST_DIR"), "/../config/gait.yaml"))
+            .unwrap();
     assert_eq!(p, GaitParams::default());
 }
 
@@ -49,12 +51,24 @@ ik_solver:
 
 #[test]
 fn unknown_keys_and_wrong_types_are_named() {
-    let e = GaitParams::from_ros_yaml_str("gait_planner:\n  ros__parameters:\n    step_lenght_m: 0.03\n").unwrap_err();
+    let e = GaitParams::from_ros_yaml_str(
+        "gait_planner:\n  ros__parameters:\n    step_lenght_m: 0.03\n",
+    )
+    .unwrap_err();
     assert!(matches!(e, GaitError::ParamFile { .. }));
     assert!(e.to_string().contains("step_lenght_m"), "{e}");
-    let e = GaitParams::from_ros_yaml_str("gait_planner:\n  ros__parameters:\n    step_duration_s: fast\n").unwrap_err();
-    assert!(e.to_string().contains("step_duration_s") || e.to_string().contains("f64"), "{e}");
-    let e = GaitParams::from_ros_yaml_str("gait_planner:\n  ros__parameters:\n    first_foot: middle\n").unwrap_err();
+    let e = GaitParams::from_ros_yaml_str(
+        "gait_planner:\n  ros__parameters:\n    step_duration_s: fast\n",
+    )
+    .unwrap_err();
+    assert!(
+        e.to_string().contains("step_duration_s") || e.to_string().contains("f64"),
+        "{e}"
+    );
+    let e = GaitParams::from_ros_yaml_str(
+        "gait_planner:\n  ros__parameters:\n    first_foot: middle\n",
+    )
+    .unwrap_err();
     assert!(e.to_string().contains("middle"), "{e}");
     let e = GaitParams::from_ros_yaml_str("ik_solver:\n  ros__parameters: {}\n").unwrap_err();
     assert!(e.to_string().contains("gait_planner"), "{e}");
@@ -68,22 +82,75 @@ fn unknown_keys_and_wrong_types_are_named() {
 fn out_of_bounds_values_name_the_key_and_value() {
     let model = default_model();
     let cases = [
-        (GaitParams { control_rate_hz: 2000.0, ..GaitParams::default() }, "control_rate_hz", 2000.0),
-        (GaitParams { step_duration_s: 0.0, ..GaitParams::default() }, "step_duration_s", 0.0),
-        (GaitParams { shift_duration_s: f64::NAN, ..GaitParams::default() }, "shift_duration_s", f64::NAN),
-        (GaitParams { step_length_m: -0.01, ..GaitParams::default() }, "step_length_m", -0.01),
-        (GaitParams { hip_height_m: 0.5, ..GaitParams::default() }, "hip_height_m", 0.5),
-        (GaitParams { foot_lift_m: 1.0, ..GaitParams::default() }, "foot_lift_m", 1.0),
+        (
+            GaitParams {
+                control_rate_hz: 2000.0,
+                ..GaitParams::default()
+            },
+            "control_rate_hz",
+            2000.0,
+        ),
+        (
+            GaitParams {
+                step_duration_s: 0.0,
+                ..GaitParams::default()
+            },
+            "step_duration_s",
+            0.0,
+        ),
+        (
+            GaitParams {
+                shift_duration_s: f64::NAN,
+                ..GaitParams::default()
+            },
+            "shift_duration_s",
+            f64::NAN,
+        ),
+        (
+            GaitParams {
+                step_length_m: -0.01,
+                ..GaitParams::default()
+            },
+            "step_length_m",
+            -0.01,
+        ),
+        (
+            GaitParams {
+                hip_height_m: 0.5,
+                ..GaitParams::default()
+            },
+            "hip_height_m",
+            0.5,
+        ),
+        (
+            GaitParams {
+                foot_lift_m: 1.0,
+                ..GaitParams::default()
+            },
+            "foot_lift_m",
+            1.0,
+        ),
     ];
     for (p, key, value) in cases {
         match p.resolve(&model) {
-            Err(GaitError::Param { key: k, value: v, .. }) => {
+            Err(GaitError::Param {
+                key: k, value: v, ..
+            }) => {
                 assert_eq!(k, key);
                 assert!(v == value || (v.is_nan() && value.is_nan()));
             }
             other => panic!("{key}: wanted a Param error, got {other:?}"),
         }
     }
-    let msg = GaitParams { control_rate_hz: 2000.0, ..GaitParams::default() }.resolve(&model).unwrap_err().to_string();
-    assert!(msg.contains("control_rate_hz") && msg.contains("2000") && msg.contains("Hz"), "{msg}");
+    let msg = GaitParams {
+        control_rate_hz: 2000.0,
+        ..GaitParams::default()
+    }
+    .resolve(&model)
+    .unwrap_err()
+    .to_string();
+    assert!(
+        msg.contains("control_rate_hz") && msg.contains("2000") && msg.contains("Hz"),
+        "{msg}"
+    );
 }

@@ -10,18 +10,41 @@ use ik_solver::Side;
 fn one_two_and_seven_steps() {
     assert_eq!(
         sequence(&plan(1, GaitParams::default())),
-        ["crouch", "shift", "half_step(L)", "shift", "final_half_step(R)", "center"]
+        [
+            "crouch",
+            "shift",
+            "half_step(L)",
+            "shift",
+            "final_half_step(R)",
+            "center"
+        ]
     );
     assert_eq!(
         sequence(&plan(2, GaitParams::default())),
-        ["crouch", "shift", "half_step(L)", "shift", "step(R)", "shift", "final_half_step(L)", "center"]
+        [
+            "crouch",
+            "shift",
+            "half_step(L)",
+            "shift",
+            "step(R)",
+            "shift",
+            "final_half_step(L)",
+            "center"
+        ]
     );
-    assert_eq!(sequence(&plan(7, GaitParams::default())), expected(7, Side::Left));
+    assert_eq!(
+        sequence(&plan(7, GaitParams::default())),
+        expected(7, Side::Left)
+    );
 }
 
 #[test]
 fn right_foot_first_and_rise_at_end() {
-    let p = GaitParams { first_foot: Side::Right, rise_at_end: true, ..GaitParams::default() };
+    let p = GaitParams {
+        first_foot: Side::Right,
+        rise_at_end: true,
+        ..GaitParams::default()
+    };
     let mut want = expected(3, Side::Right);
     want.push("rise".into());
     assert_eq!(sequence(&plan(3, p)), want);
@@ -34,14 +57,24 @@ fn n_steps_advance_n_step_lengths_and_end_feet_together() {
     let step = planner.config().step_length_m;
     let last = samples.last().unwrap();
     let [l, r] = last.ankles_world_m;
-    assert!((l.x - 5.0 * step).abs() < 1e-12 && (r.x - 5.0 * step).abs() < 1e-12, "feet at {} and {}", l.x, r.x);
+    assert!(
+        (l.x - 5.0 * step).abs() < 1e-12 && (r.x - 5.0 * step).abs() < 1e-12,
+        "feet at {} and {}",
+        l.x,
+        r.x
+    );
     assert_eq!(last.phase, PhaseKind::Center);
     assert_eq!(last.progress, 1.0);
 }
 
 #[test]
 fn phases_last_their_configured_durations() {
-    let p = GaitParams { step_duration_s: 0.8, shift_duration_s: 0.6, crouch_duration_s: 0.5, ..GaitParams::default() };
+    let p = GaitParams {
+        step_duration_s: 0.8,
+        shift_duration_s: 0.6,
+        crouch_duration_s: 0.5,
+        ..GaitParams::default()
+    };
     let samples = plan(2, p);
     // 100 Hz; each phase's ticks are (start, end], the crouch also has its t = 0 tick.
     assert_eq!(phase_ticks(&samples, PhaseKind::Crouch), 51);
@@ -74,9 +107,21 @@ fn walk_and_stop(stop_at_s: f64) -> Vec<GaitSample> {
 fn stop_in_every_phase_ends_at_the_next_feet_together_point() {
     // Defaults: 1 s per phase. Continuous walk: crouch [0,1], shift (1,2], half_step(L) (2,3],
     // shift (3,4], step(R) (4,5], shift (5,6], step(L) (6,7], ...
-    let base = ["crouch", "shift", "half_step(L)", "shift", "step(R)", "shift", "step(L)"];
+    let base = [
+        "crouch",
+        "shift",
+        "half_step(L)",
+        "shift",
+        "step(R)",
+        "shift",
+        "step(L)",
+    ];
     let closing = |upto: usize, tail: &[&str]| -> Vec<String> {
-        base[..upto].iter().chain(tail).map(|s| s.to_string()).collect()
+        base[..upto]
+            .iter()
+            .chain(tail)
+            .map(|s| s.to_string())
+            .collect()
     };
     let cases: Vec<(f64, Vec<String>)> = vec![
         // In the crouch: the feet are together already; the crouch finishes and the walk ends.
@@ -96,11 +141,22 @@ fn stop_in_every_phase_ends_at_the_next_feet_together_point() {
         let samples = walk_and_stop(t);
         assert_eq!(sequence(&samples), want, "stop at t = {t}");
         // Never mid-air: every swing that started ran its full 100 ticks.
-        for kind in [PhaseKind::HalfStep, PhaseKind::Step, PhaseKind::FinalHalfStep] {
-            assert_eq!(phase_ticks(&samples, kind) % 100, 0, "stop at t = {t}: a {kind} was cut short");
+        for kind in [
+            PhaseKind::HalfStep,
+            PhaseKind::Step,
+            PhaseKind::FinalHalfStep,
+        ] {
+            assert_eq!(
+                phase_ticks(&samples, kind) % 100,
+                0,
+                "stop at t = {t}: a {kind} was cut short"
+            );
         }
         let last = samples.last().unwrap();
-        assert!((last.ankles_world_m[0].x - last.ankles_world_m[1].x).abs() < 1e-12, "stop at t = {t}: feet not level");
+        assert!(
+            (last.ankles_world_m[0].x - last.ankles_world_m[1].x).abs() < 1e-12,
+            "stop at t = {t}: feet not level"
+        );
     }
 }
 
@@ -166,7 +222,13 @@ fn idle_planner_holds_still_and_a_later_walk_starts_without_a_second_crouch() {
 fn time_going_backwards_or_nan_is_refused() {
     let mut p = planner(GaitParams::default());
     p.update(1.0).unwrap();
-    assert!(matches!(p.update(0.5), Err(gait_planner::GaitError::Time { .. })));
-    assert!(matches!(p.update(f64::NAN), Err(gait_planner::GaitError::Time { .. })));
+    assert!(matches!(
+        p.update(0.5),
+        Err(gait_planner::GaitError::Time { .. })
+    ));
+    assert!(matches!(
+        p.update(f64::NAN),
+        Err(gait_planner::GaitError::Time { .. })
+    ));
     assert!(p.update(1.0).is_ok());
 }

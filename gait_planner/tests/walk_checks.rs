@@ -4,7 +4,9 @@
 
 mod common;
 use common::*;
-use gait_planner::{GaitError, GaitParams, GaitPlanner, GaitSample, PhaseKind, Support, WalkRequest};
+use gait_planner::{
+    GaitError, GaitParams, GaitPlanner, GaitSample, PhaseKind, Support, WalkRequest,
+};
 use ik_solver::{BipedModel, Side};
 use nalgebra::Point3;
 
@@ -25,8 +27,13 @@ fn fk(model: &BipedModel, s: &GaitSample) -> Fk {
         let up = r * nalgebra::Vector3::z();
         up.angle(&nalgebra::Vector3::z())
     });
-    let sole_bottom_z_m = Side::BOTH.map(|side| ankles[side.index()].z - model.leg(side).ankle_to_sole_m);
-    Fk { ankles, foot_tilt_rad, sole_bottom_z_m }
+    let sole_bottom_z_m =
+        Side::BOTH.map(|side| ankles[side.index()].z - model.leg(side).ankle_to_sole_m);
+    Fk {
+        ankles,
+        foot_tilt_rad,
+        sole_bottom_z_m,
+    }
 }
 
 fn check_walk(model: &BipedModel, planner: &GaitPlanner, samples: &[GaitSample]) {
@@ -39,27 +46,58 @@ fn check_walk(model: &BipedModel, planner: &GaitPlanner, samples: &[GaitSample])
         assert!(s.issues.is_empty(), "t = {}: {:?}", s.t_s, s.issues);
         for side in Side::BOTH {
             let k = side.index();
-            assert!(f.sole_bottom_z_m[k] > -1e-12, "t = {}: {side} sole {} m below the floor", s.t_s, f.sole_bottom_z_m[k]);
-            assert!(f.foot_tilt_rad[k] < 1e-9, "t = {}: {side} sole tilted {} rad", s.t_s, f.foot_tilt_rad[k]);
+            assert!(
+                f.sole_bottom_z_m[k] > -1e-12,
+                "t = {}: {side} sole {} m below the floor",
+                s.t_s,
+                f.sole_bottom_z_m[k]
+            );
+            assert!(
+                f.foot_tilt_rad[k] < 1e-9,
+                "t = {}: {side} sole tilted {} rad",
+                s.t_s,
+                f.foot_tilt_rad[k]
+            );
             // The planner's ankle positions are the ones forward kinematics gives.
-            assert!((f.ankles[k] - s.ankles_world_m[k]).norm() < 1e-9, "t = {}: {side} ankle off its plan", s.t_s);
+            assert!(
+                (f.ankles[k] - s.ankles_world_m[k]).norm() < 1e-9,
+                "t = {}: {side} ankle off its plan",
+                s.t_s
+            );
         }
         // Whole-body CoM and its margin as the planner reports them.
         let poses = robot.link_poses(&s.base_world, &s.joints_rad).unwrap();
         assert!((robot.center_of_mass(&poses) - s.com_world_m).norm() < 1e-12);
-        assert!(s.margin_m >= cfg.min_com_margin_m, "t = {} ({}): margin {} below {}", s.t_s, s.phase, s.margin_m, cfg.min_com_margin_m);
+        assert!(
+            s.margin_m >= cfg.min_com_margin_m,
+            "t = {} ({}): margin {} below {}",
+            s.t_s,
+            s.phase,
+            s.margin_m,
+            cfg.min_com_margin_m
+        );
         if let Some((p, pf)) = &prev {
             for (d, (a, b)) in p.joints_rad.iter().zip(&s.joints_rad).enumerate() {
                 let j = &robot.joints()[robot.dof_joints()[d]];
                 let limit = j.limits.unwrap().velocity;
-                assert!((b - a).abs() <= limit * dt, "t = {}: joint {} moved {} rad in one tick", s.t_s, j.name, (b - a).abs());
+                assert!(
+                    (b - a).abs() <= limit * dt,
+                    "t = {}: joint {} moved {} rad in one tick",
+                    s.t_s,
+                    j.name,
+                    (b - a).abs()
+                );
             }
             // A foot that carried the robot over the last tick has not moved.
             for side in Side::BOTH {
                 let carrying = |sup: Support| sup == Support::Double || sup == Support::on(side);
                 if carrying(p.support) && carrying(s.support) {
                     let slid = (f.ankles[side.index()] - pf.ankles[side.index()]).norm();
-                    assert!(slid < 1e-9, "t = {}: {side} stance foot slid {slid} m", s.t_s);
+                    assert!(
+                        slid < 1e-9,
+                        "t = {}: {side} stance foot slid {slid} m",
+                        s.t_s
+                    );
                 }
             }
         }
@@ -70,25 +108,46 @@ fn check_walk(model: &BipedModel, planner: &GaitPlanner, samples: &[GaitSample])
 #[test]
 fn default_walk_is_continuous_stable_and_feet_fixed() {
     let model = default_model();
-    let mut planner = GaitPlanner::new(model.clone(), GaitParams { rise_at_end: true, ..GaitParams::default() }).unwrap();
+    let mut planner = GaitPlanner::new(
+        model.clone(),
+        GaitParams {
+            rise_at_end: true,
+            ..GaitParams::default()
+        },
+    )
+    .unwrap();
     let samples = planner.plan(WalkRequest::Steps(7)).unwrap();
     check_walk(&model, &planner, &samples);
     // The stance sole carries the CoM in single support: margin well above the minimum there.
-    let single: Vec<&GaitSample> = samples.iter().filter(|s| s.support != Support::Double).collect();
+    let single: Vec<&GaitSample> = samples
+        .iter()
+        .filter(|s| s.support != Support::Double)
+        .collect();
     assert!(!single.is_empty());
     // The sideways shift was derived from the mass model: the CoM sits over the stance sole's
     // centre line (y = hip offset ± 0) throughout single support.
     for s in single {
-        let stance = if s.support == Support::Left { Side::Left } else { Side::Right };
+        let stance = if s.support == Support::Left {
+            Side::Left
+        } else {
+            Side::Right
+        };
         let want_y = s.ankles_world_m[stance.index()].y;
-        assert!((s.com_world_m.y - want_y).abs() < 1e-9, "t = {}: CoM y {} not over the stance foot {}", s.t_s, s.com_world_m.y, want_y);
+        assert!(
+            (s.com_world_m.y - want_y).abs() < 1e-9,
+            "t = {}: CoM y {} not over the stance foot {}",
+            s.t_s,
+            s.com_world_m.y,
+            want_y
+        );
     }
 }
 
 #[test]
 fn six_joint_robot_with_other_lengths_walks_with_derived_defaults() {
     let model = biped6_model();
-    let mut planner = GaitPlanner::new(model.clone(), GaitParams::default()).expect("another robot gets a valid walk untuned");
+    let mut planner = GaitPlanner::new(model.clone(), GaitParams::default())
+        .expect("another robot gets a valid walk untuned");
     let samples = planner.plan(WalkRequest::Steps(4)).unwrap();
     check_walk(&model, &planner, &samples);
     // Its defaults scale with its legs (0.21 m vs the default robot's 0.18 m).
@@ -98,7 +157,14 @@ fn six_joint_robot_with_other_lengths_walks_with_derived_defaults() {
 #[test]
 fn one_kilohertz_walk_is_as_smooth() {
     let model = default_model();
-    let mut planner = GaitPlanner::new(model.clone(), GaitParams { control_rate_hz: 1000.0, ..GaitParams::default() }).unwrap();
+    let mut planner = GaitPlanner::new(
+        model.clone(),
+        GaitParams {
+            control_rate_hz: 1000.0,
+            ..GaitParams::default()
+        },
+    )
+    .unwrap();
     let samples = planner.plan(WalkRequest::Steps(2)).unwrap();
     assert_eq!(samples.len(), 8001);
     check_walk(&model, &planner, &samples);
@@ -108,29 +174,58 @@ fn one_kilohertz_walk_is_as_smooth() {
 fn margin_short_of_the_minimum_is_refused_naming_phase_and_shortfall() {
     // With the CoM over the stance sole's centre, the first shift ends 0.030 m (half the sole
     // width) from the support polygon's outer edge: a 0.032 m minimum cannot be kept.
-    let err = GaitPlanner::new(default_model(), GaitParams { min_com_margin_m: 0.032, ..GaitParams::default() }).unwrap_err();
+    let err = GaitPlanner::new(
+        default_model(),
+        GaitParams {
+            min_com_margin_m: 0.032,
+            ..GaitParams::default()
+        },
+    )
+    .unwrap_err();
     match &err {
-        GaitError::Unstable { phase, margin_m, min_m, t_s, .. } => {
+        GaitError::Unstable {
+            phase,
+            margin_m,
+            min_m,
+            t_s,
+            ..
+        } => {
             assert_eq!(*phase, PhaseKind::Shift);
-            assert!(*t_s > 1.0 && *t_s <= 2.0, "during the first shift, t = {t_s}");
+            assert!(
+                *t_s > 1.0 && *t_s <= 2.0,
+                "during the first shift, t = {t_s}"
+            );
             assert!(*margin_m < 0.032 && *margin_m > 0.030, "{margin_m}");
             assert_eq!(*min_m, 0.032);
         }
         other => panic!("wanted Unstable, got {other:?}"),
     }
     let msg = err.to_string();
-    assert!(msg.contains("`shift`") && msg.contains("both feet on the floor") && msg.contains("below the minimum 0.0320 m"), "{msg}");
+    assert!(
+        msg.contains("`shift`")
+            && msg.contains("both feet on the floor")
+            && msg.contains("below the minimum 0.0320 m"),
+        "{msg}"
+    );
 }
 
 #[test]
 fn a_step_beyond_the_legs_reach_is_refused_naming_the_phase() {
     // Slow enough that no joint speed limit is hit first.
-    let p = GaitParams { step_length_m: 0.1, step_duration_s: 10.0, shift_duration_s: 5.0, ..GaitParams::default() };
+    let p = GaitParams {
+        step_length_m: 0.1,
+        step_duration_s: 10.0,
+        shift_duration_s: 5.0,
+        ..GaitParams::default()
+    };
     let err = GaitPlanner::new(default_model(), p).unwrap_err();
     match &err {
         GaitError::Unreachable { phase, issue, .. } => {
             assert_eq!(*phase, PhaseKind::HalfStep);
-            assert!(issue.contains("left leg") && issue.contains("reach"), "{issue}");
+            assert!(
+                issue.contains("left leg") && issue.contains("reach"),
+                "{issue}"
+            );
         }
         other => panic!("wanted Unreachable, got {other:?}"),
     }
@@ -140,7 +235,12 @@ fn a_step_beyond_the_legs_reach_is_refused_naming_the_phase() {
 fn too_fast_a_step_is_refused_naming_the_joint() {
     let err = GaitPlanner::new(
         default_model(),
-        GaitParams { step_duration_s: 0.1, step_length_m: 0.07, foot_lift_m: 0.03, ..GaitParams::default() },
+        GaitParams {
+            step_duration_s: 0.1,
+            step_length_m: 0.07,
+            foot_lift_m: 0.03,
+            ..GaitParams::default()
+        },
     )
     .unwrap_err();
     assert!(matches!(err, GaitError::TooFast { .. }), "{err:?}");

@@ -52,7 +52,9 @@ pub enum ModelError {
         second: String,
     },
     /// The tree does not have exactly one root (several roots, or a cycle).
-    #[error("the links do not form one tree: roots {roots:?} (a URDF has exactly one root link; a cycle leaves none)")]
+    #[error(
+        "the links do not form one tree: roots {roots:?} (a URDF has exactly one root link; a cycle leaves none)"
+    )]
     NotATree {
         /// The links without a parent joint.
         roots: Vec<String>,

@@ -33,7 +33,10 @@ pub struct AnkleTarget {
 impl AnkleTarget {
     /// A target with the foot straight ahead.
     pub fn new(x_m: f64, y_m: f64, z_m: f64) -> Self {
-        Self { ankle_in_hip_m: Vector3::new(x_m, y_m, z_m), foot_yaw_rad: 0.0 }
+        Self {
+            ankle_in_hip_m: Vector3::new(x_m, y_m, z_m),
+            foot_yaw_rad: 0.0,
+        }
     }
 }
 
@@ -83,23 +86,43 @@ pub enum IkIssue {
 impl fmt::Display for IkIssue {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            IkIssue::OutOfReach { side, distance_m, reach_m } => write!(
+            IkIssue::OutOfReach {
+                side,
+                distance_m,
+                reach_m,
+            } => write!(
                 f,
                 "{side} leg: ankle target {distance_m:.4} m from the hip pitch axis is beyond the leg's reach {reach_m:.4} m by {:.4} m; pulled onto the reach",
                 distance_m - reach_m
             ),
-            IkIssue::TooClose { side, distance_m, min_m } => write!(
+            IkIssue::TooClose {
+                side,
+                distance_m,
+                min_m,
+            } => write!(
                 f,
                 "{side} leg: ankle target {distance_m:.4} m from the hip pitch axis is closer than the folded leg allows ({min_m:.4} m) by {:.4} m; pushed out",
                 min_m - distance_m
             ),
-            IkIssue::JointLimit { side, role, joint, requested_rad, clamped_rad } => write!(
+            IkIssue::JointLimit {
+                side,
+                role,
+                joint,
+                requested_rad,
+                clamped_rad,
+            } => write!(
                 f,
                 "{side} leg: {role} joint `{joint}` needs {requested_rad:.4} rad, beyond its limit by {:.4} rad; clamped to {clamped_rad:.4} rad",
                 (requested_rad - clamped_rad).abs()
             ),
-            IkIssue::NoYawJoint { side, requested_rad } => {
-                write!(f, "{side} leg: foot yaw {requested_rad:.4} rad asked of a leg without a hip yaw joint; 0 used")
+            IkIssue::NoYawJoint {
+                side,
+                requested_rad,
+            } => {
+                write!(
+                    f,
+                    "{side} leg: foot yaw {requested_rad:.4} rad asked of a leg without a hip yaw joint; 0 used"
+                )
             }
         }
     }
@@ -135,7 +158,11 @@ pub struct BipedModel {
 }
 
 fn check_finite(side: Side, field: &'static str, value: f64) -> Result<(), IkError> {
-    if value.is_finite() { Ok(()) } else { Err(IkError::NonFiniteTarget { side, field, value }) }
+    if value.is_finite() {
+        Ok(())
+    } else {
+        Err(IkError::NonFiniteTarget { side, field, value })
+    }
 }
 
 impl BipedModel {
@@ -155,12 +182,18 @@ impl BipedModel {
     }
 
     /// Reads a URDF file: see [`Self::from_urdf_str`].
-    pub fn from_urdf_file(path: impl AsRef<std::path::Path>, role_map: Option<&LegRoleMap>) -> Result<Self, ModelError> {
+    pub fn from_urdf_file(
+        path: impl AsRef<std::path::Path>,
+        role_map: Option<&LegRoleMap>,
+    ) -> Result<Self, ModelError> {
         Self::from_robot(RobotModel::from_urdf_file(path)?, role_map)
     }
 
     /// Finds the legs of an already parsed tree.
-    pub fn from_robot(robot: RobotModel, role_map: Option<&LegRoleMap>) -> Result<Self, ModelError> {
+    pub fn from_robot(
+        robot: RobotModel,
+        role_map: Option<&LegRoleMap>,
+    ) -> Result<Self, ModelError> {
         let legs = find_legs(&robot, role_map)?;
         Ok(Self { robot, legs })
     }
@@ -189,7 +222,10 @@ impl BipedModel {
             target.foot_yaw_rad
         } else {
             if target.foot_yaw_rad != 0.0 {
-                issues.push(IkIssue::NoYawJoint { side, requested_rad: target.foot_yaw_rad });
+                issues.push(IkIssue::NoYawJoint {
+                    side,
+                    requested_rad: target.foot_yaw_rad,
+                });
             }
             0.0
         };
@@ -210,18 +246,34 @@ impl BipedModel {
         if d > reach {
             // Straight legs land here by rounding; only a real overshoot is an issue.
             if d > reach + REACH_TOLERANCE_M {
-                issues.push(IkIssue::OutOfReach { side, distance_m: d, reach_m: reach });
+                issues.push(IkIssue::OutOfReach {
+                    side,
+                    distance_m: d,
+                    reach_m: reach,
+                });
             }
             (x, z) = (x * reach / d, z * reach / d);
             d = reach;
         } else if d < min {
-            issues.push(IkIssue::TooClose { side, distance_m: d, min_m: min });
-            (x, z) = if d > 0.0 { (x * min / d, z * min / d) } else { (0.0, min) };
+            issues.push(IkIssue::TooClose {
+                side,
+                distance_m: d,
+                min_m: min,
+            });
+            (x, z) = if d > 0.0 {
+                (x * min / d, z * min / d)
+            } else {
+                (0.0, min)
+            };
             d = min;
         }
-        let gamma = ((l1 * l1 + l2 * l2 - d * d) / (2.0 * l1 * l2)).clamp(-1.0, 1.0).acos();
+        let gamma = ((l1 * l1 + l2 * l2 - d * d) / (2.0 * l1 * l2))
+            .clamp(-1.0, 1.0)
+            .acos();
         let alpha = x.atan2(z);
-        let beta = ((l1 * l1 + d * d - l2 * l2) / (2.0 * l1 * d)).clamp(-1.0, 1.0).acos();
+        let beta = ((l1 * l1 + d * d - l2 * l2) / (2.0 * l1 * d))
+            .clamp(-1.0, 1.0)
+            .acos();
         let thigh = alpha + beta; // forward angle of the thigh from straight down
         let shin = thigh - (PI - gamma); // forward angle of the shin
 
@@ -238,8 +290,8 @@ impl BipedModel {
         ];
         for (role, joint) in leg.present() {
             let a = &mut angles[role as usize];
-            let clamped = joint.limits.clamp(*a);
-            if clamped != *a {
+            if !(joint.limits.lower..=joint.limits.upper).contains(a) {
+                let clamped = joint.limits.clamp(*a);
                 issues.push(IkIssue::JointLimit {
                     side,
                     role,
@@ -250,14 +302,26 @@ impl BipedModel {
                 *a = clamped;
             }
         }
-        Ok(LegSolution { side, angles_rad: angles, issues })
+        Ok(LegSolution {
+            side,
+            angles_rad: angles,
+            issues,
+        })
     }
 
     /// Solves both legs and writes their angles into the joint vector `q` (other joints are
     /// left as they are). Returns what was clamped, for both legs.
-    pub fn solve_legs(&self, left: &AnkleTarget, right: &AnkleTarget, q: &mut [f64]) -> Result<Vec<IkIssue>, IkError> {
+    pub fn solve_legs(
+        &self,
+        left: &AnkleTarget,
+        right: &AnkleTarget,
+        q: &mut [f64],
+    ) -> Result<Vec<IkIssue>, IkError> {
         if q.len() != self.robot.dof_count() {
-            return Err(IkError::JointCount { expected: self.robot.dof_count(), got: q.len() });
+            return Err(IkError::JointCount {
+                expected: self.robot.dof_count(),
+                got: q.len(),
+            });
         }
         // Solve both before writing either: a refused target leaves `q` untouched.
         let l = self.solve_leg(Side::Left, left)?;

@@ -86,8 +86,14 @@ pub enum JointRole {
 
 impl JointRole {
     /// All roles, hip to foot.
-    pub const ALL: [JointRole; 6] =
-        [JointRole::HipYaw, JointRole::HipRoll, JointRole::HipPitch, JointRole::Knee, JointRole::AnklePitch, JointRole::AnkleRoll];
+    pub const ALL: [JointRole; 6] = [
+        JointRole::HipYaw,
+        JointRole::HipRoll,
+        JointRole::HipPitch,
+        JointRole::Knee,
+        JointRole::AnklePitch,
+        JointRole::AnkleRoll,
+    ];
     /// snake_case name.
     pub fn as_str(self) -> &'static str {
         match self {
@@ -264,11 +270,16 @@ impl Leg {
     }
     /// The joints present, hip to foot.
     pub fn present(&self) -> impl Iterator<Item = (JointRole, &LegJoint)> {
-        JointRole::ALL.into_iter().filter_map(|r| self.joint(r).map(|j| (r, j)))
+        JointRole::ALL
+            .into_iter()
+            .filter_map(|r| self.joint(r).map(|j| (r, j)))
     }
     /// Ankle-pitch axis position in the world (m) from link poses.
     pub fn ankle_world(&self, robot: &RobotModel, poses: &[Isometry3<f64>]) -> Point3<f64> {
-        let j = self.joint(JointRole::AnklePitch).map(|j| j.joint).unwrap_or_default();
+        let j = self
+            .joint(JointRole::AnklePitch)
+            .map(|j| j.joint)
+            .unwrap_or_default();
         Point3::from(robot.joint_frame(poses, j).translation.vector)
     }
     /// Longest reach from the hip-pitch axis to the ankle-pitch axis (m).
@@ -304,7 +315,9 @@ impl ZeroPose {
     fn new(robot: &RobotModel) -> Self {
         let q = vec![0.0; robot.dof_count()];
         // A zero vector of the right length is always accepted.
-        let poses = robot.link_poses(&Isometry3::identity(), &q).unwrap_or_default();
+        let poses = robot
+            .link_poses(&Isometry3::identity(), &q)
+            .unwrap_or_default();
         Self { poses }
     }
     fn origin(&self, robot: &RobotModel, joint: usize) -> Vector3<f64> {
@@ -339,14 +352,25 @@ fn chains(robot: &RobotModel) -> Vec<(usize, Vec<usize>)> {
 
 const PATTERN: [JointRole; 6] = JointRole::ALL;
 
+/// Joint indices of one leg by [`JointRole`].
+type LegIds = [Option<usize>; 6];
+
 /// Finds the two legs and reads their geometry.
-pub(crate) fn find_legs(robot: &RobotModel, role_map: Option<&LegRoleMap>) -> Result<[Leg; 2], ModelError> {
+pub(crate) fn find_legs(
+    robot: &RobotModel,
+    role_map: Option<&LegRoleMap>,
+) -> Result<[Leg; 2], ModelError> {
     let zero = ZeroPose::new(robot);
-    let found: Vec<(Side, [Option<usize>; 6])> = match role_map {
-        Some(map) => vec![(Side::Left, mapped(robot, &zero, &map.left)?), (Side::Right, mapped(robot, &zero, &map.right)?)],
+    let found: Vec<(Side, LegIds)> = match role_map {
+        Some(map) => vec![
+            (Side::Left, mapped(robot, &zero, &map.left)?),
+            (Side::Right, mapped(robot, &zero, &map.right)?),
+        ],
         None => detect(robot, &zero)?,
     };
-    let mut legs = found.into_iter().map(|(side, joints)| leg_geometry(robot, &zero, side, joints));
+    let mut legs = found
+        .into_iter()
+        .map(|(side, joints)| leg_geometry(robot, &zero, side, joints));
     let (Some(a), Some(b)) = (legs.next(), legs.next()) else {
         return Err(ModelError::NotABiped("fewer than two legs".into()));
     };
@@ -354,17 +378,21 @@ pub(crate) fn find_legs(robot: &RobotModel, role_map: Option<&LegRoleMap>) -> Re
 }
 
 fn role_of(robot: &RobotModel, zero: &ZeroPose, j: usize) -> Option<(Axis, f64)> {
-    if !matches!(robot.joints()[j].kind, JointKind::Revolute | JointKind::Continuous) {
+    if !matches!(
+        robot.joints()[j].kind,
+        JointKind::Revolute | JointKind::Continuous
+    ) {
         return None;
     }
     axis_of(&zero.axis(robot, j))
 }
 
-fn detect(robot: &RobotModel, zero: &ZeroPose) -> Result<Vec<(Side, [Option<usize>; 6])>, ModelError> {
-    let mut legs: Vec<[Option<usize>; 6]> = Vec::new();
+fn detect(robot: &RobotModel, zero: &ZeroPose) -> Result<Vec<(Side, LegIds)>, ModelError> {
+    let mut legs: Vec<LegIds> = Vec::new();
     let mut rejected = Vec::new();
     for (leaf, path) in chains(robot) {
-        let axes: Vec<Option<(Axis, f64)>> = path.iter().map(|&j| role_of(robot, zero, j)).collect();
+        let axes: Vec<Option<(Axis, f64)>> =
+            path.iter().map(|&j| role_of(robot, zero, j)).collect();
         let matches = |n: usize| {
             path.len() >= n
                 && PATTERN[6 - n..]
@@ -372,7 +400,13 @@ fn detect(robot: &RobotModel, zero: &ZeroPose) -> Result<Vec<(Side, [Option<usiz
                     .zip(&axes[path.len() - n..])
                     .all(|(role, a)| a.map(|(ax, _)| ax) == Some(role.axis()))
         };
-        let n = if matches(6) { 6 } else if matches(5) { 5 } else { 0 };
+        let n = if matches(6) {
+            6
+        } else if matches(5) {
+            5
+        } else {
+            0
+        };
         if n > 0 {
             let mut joints = [None; 6];
             for (k, &j) in path[path.len() - n..].iter().enumerate() {
@@ -393,19 +427,31 @@ fn detect(robot: &RobotModel, zero: &ZeroPose) -> Result<Vec<(Side, [Option<usiz
                 .rev()
                 .find(|((_, a), role)| a.map(|(ax, _)| ax) != Some(role.axis()))
                 .map(|((&j, a), role)| {
-                    format!("joint `{}` (axis {}) where a {role} joint (axis {}) belongs", robot.joints()[j].name, axis_name(*a), match role.axis() {
-                        Axis::X => "x",
-                        Axis::Y => "y",
-                        Axis::Z => "z",
-                    })
+                    format!(
+                        "joint `{}` (axis {}) where a {role} joint (axis {}) belongs",
+                        robot.joints()[j].name,
+                        axis_name(*a),
+                        match role.axis() {
+                            Axis::X => "x",
+                            Axis::Y => "y",
+                            Axis::Z => "z",
+                        }
+                    )
                 })
                 .unwrap_or_else(|| "too few movable joints".into());
-            let names: Vec<String> =
-                path.iter().zip(&axes).map(|(&j, a)| format!("{}({})", robot.joints()[j].name, axis_name(*a))).collect();
-            rejected.push(format!("chain to link `{}` [{}]: {fault}", robot.links()[leaf].name, names.join(", ")));
+            let names: Vec<String> = path
+                .iter()
+                .zip(&axes)
+                .map(|(&j, a)| format!("{}({})", robot.joints()[j].name, axis_name(*a)))
+                .collect();
+            rejected.push(format!(
+                "chain to link `{}` [{}]: {fault}",
+                robot.links()[leaf].name,
+                names.join(", ")
+            ));
         }
     }
-    let side_of = |joints: &[Option<usize>; 6]| {
+    let side_of = |joints: &LegIds| {
         let hip = joints[1].map(|j| zero.origin(robot, j).y).unwrap_or(0.0);
         if hip > 0.0 { Side::Left } else { Side::Right }
     };
@@ -421,16 +467,30 @@ fn detect(robot: &RobotModel, zero: &ZeroPose) -> Result<Vec<(Side, [Option<usiz
         ModelError::NotABiped(s)
     };
     if legs.len() != 2 {
-        let names: Vec<String> =
-            legs.iter().map(|l| l[1].map(|j| robot.joints()[j].name.clone()).unwrap_or_default()).collect();
-        return Err(explain(format!("found {} leg chain(s) {:?} from base link `{}`, need 2", legs.len(), names, robot.links()[robot.root()].name)));
+        let names: Vec<String> = legs
+            .iter()
+            .map(|l| {
+                l[1].map(|j| robot.joints()[j].name.clone())
+                    .unwrap_or_default()
+            })
+            .collect();
+        return Err(explain(format!(
+            "found {} leg chain(s) {:?} from base link `{}`, need 2",
+            legs.len(),
+            names,
+            robot.links()[robot.root()].name
+        )));
     }
     let (a, b) = (side_of(&legs[0]), side_of(&legs[1]));
     if a == b {
         return Err(ModelError::NotABiped(format!(
             "both legs (hip roll joints `{}` and `{}`) are on the {a} side of the base",
-            legs[0][1].map(|j| robot.joints()[j].name.clone()).unwrap_or_default(),
-            legs[1][1].map(|j| robot.joints()[j].name.clone()).unwrap_or_default()
+            legs[0][1]
+                .map(|j| robot.joints()[j].name.clone())
+                .unwrap_or_default(),
+            legs[1][1]
+                .map(|j| robot.joints()[j].name.clone())
+                .unwrap_or_default()
         )));
     }
     let mut out = vec![(a, legs[0]), (b, legs[1])];
@@ -438,20 +498,31 @@ fn detect(robot: &RobotModel, zero: &ZeroPose) -> Result<Vec<(Side, [Option<usiz
     Ok(out)
 }
 
-fn mapped(robot: &RobotModel, zero: &ZeroPose, names: &LegJointNames) -> Result<[Option<usize>; 6], ModelError> {
+fn mapped(
+    robot: &RobotModel,
+    zero: &ZeroPose,
+    names: &LegJointNames,
+) -> Result<LegIds, ModelError> {
     let mut joints = [None; 6];
     for (role, name) in JointRole::ALL.into_iter().zip(names.by_role()) {
         let Some(name) = name else { continue };
-        let j = robot
-            .joint_index(name)
-            .ok_or_else(|| ModelError::RoleMap(format!("{role} joint `{name}` is not in the URDF")))?;
+        let j = robot.joint_index(name).ok_or_else(|| {
+            ModelError::RoleMap(format!("{role} joint `{name}` is not in the URDF"))
+        })?;
         match role_of(robot, zero, j) {
             Some((axis, _)) if axis == role.axis() => {}
             other => {
                 return Err(ModelError::RoleMap(format!(
                     "{role} joint `{name}` is not a revolute joint about the base {} axis at zero angles (its axis is {})",
                     axis_name(Some((role.axis(), 1.0))),
-                    if matches!(robot.joints()[j].kind, JointKind::Revolute | JointKind::Continuous) { axis_name(other) } else { "not revolute" }
+                    if matches!(
+                        robot.joints()[j].kind,
+                        JointKind::Revolute | JointKind::Continuous
+                    ) {
+                        axis_name(other)
+                    } else {
+                        "not revolute"
+                    }
                 )));
             }
         }
@@ -462,7 +533,9 @@ fn mapped(robot: &RobotModel, zero: &ZeroPose, names: &LegJointNames) -> Result<
     for w in present.windows(2) {
         let mut link = robot.joints()[w[1]].parent;
         let ok = loop {
-            let Some(pj) = robot.links()[link].parent_joint else { break false };
+            let Some(pj) = robot.links()[link].parent_joint else {
+                break false;
+            };
             if pj == w[0] {
                 break true;
             }
@@ -482,24 +555,47 @@ fn mapped(robot: &RobotModel, zero: &ZeroPose, names: &LegJointNames) -> Result<
     Ok(joints)
 }
 
-fn leg_geometry(robot: &RobotModel, zero: &ZeroPose, side: Side, ids: [Option<usize>; 6]) -> Result<Leg, ModelError> {
+fn leg_geometry(
+    robot: &RobotModel,
+    zero: &ZeroPose,
+    side: Side,
+    ids: LegIds,
+) -> Result<Leg, ModelError> {
     let bad = |why: String| ModelError::LegGeometry { side, why };
     let name = |j: usize| robot.joints()[j].name.clone();
     let mut joints: [Option<LegJoint>; 6] = Default::default();
     for role in JointRole::ALL {
-        let Some(j) = ids[role as usize] else { continue };
+        let Some(j) = ids[role as usize] else {
+            continue;
+        };
         let joint = &robot.joints()[j];
         let (_, sign) = axis_of(&zero.axis(robot, j)).unwrap_or((Axis::X, 1.0));
         let (Some(dof), Some(limits)) = (joint.dof, joint.limits) else {
             return Err(bad(format!("{role} joint `{}` is not movable", joint.name)));
         };
-        joints[role as usize] = Some(LegJoint { name: joint.name.clone(), joint: j, dof, axis_sign: sign, limits });
+        joints[role as usize] = Some(LegJoint {
+            name: joint.name.clone(),
+            joint: j,
+            dof,
+            axis_sign: sign,
+            limits,
+        });
     }
     let id = |r: JointRole| ids[r as usize].ok_or_else(|| bad(format!("no {r} joint")));
-    let (roll, pitch, knee, ap, ar) =
-        (id(JointRole::HipRoll)?, id(JointRole::HipPitch)?, id(JointRole::Knee)?, id(JointRole::AnklePitch)?, id(JointRole::AnkleRoll)?);
-    let (p_roll, p_pitch, p_knee, p_ap, p_ar) =
-        (zero.origin(robot, roll), zero.origin(robot, pitch), zero.origin(robot, knee), zero.origin(robot, ap), zero.origin(robot, ar));
+    let (roll, pitch, knee, ap, ar) = (
+        id(JointRole::HipRoll)?,
+        id(JointRole::HipPitch)?,
+        id(JointRole::Knee)?,
+        id(JointRole::AnklePitch)?,
+        id(JointRole::AnkleRoll)?,
+    );
+    let (p_roll, p_pitch, p_knee, p_ap, p_ar) = (
+        zero.origin(robot, roll),
+        zero.origin(robot, pitch),
+        zero.origin(robot, knee),
+        zero.origin(robot, ap),
+        zero.origin(robot, ar),
+    );
 
     if let Some(yaw) = ids[0] {
         let off = (p_roll - zero.origin(robot, yaw)).xy().norm();
@@ -545,11 +641,18 @@ fn leg_geometry(robot: &RobotModel, zero: &ZeroPose, side: Side, ids: [Option<us
     let (l1, l2) = (thigh.xz().norm(), shin.xz().norm());
     for (what, l, j) in [("thigh", l1, knee), ("shin", l2, ap)] {
         if l < 1e-3 {
-            return Err(bad(format!("{what} length {l:.6} m (to joint `{}`) is too short to be a leg", name(j))));
+            return Err(bad(format!(
+                "{what} length {l:.6} m (to joint `{}`) is too short to be a leg",
+                name(j)
+            )));
         }
     }
     if p_ap.z >= p_pitch.z {
-        return Err(bad(format!("ankle pitch joint `{}` is not below hip pitch joint `{}` at zero angles", name(ap), name(pitch))));
+        return Err(bad(format!(
+            "ankle pitch joint `{}` is not below hip pitch joint `{}` at zero angles",
+            name(ap),
+            name(pitch)
+        )));
     }
 
     // The foot: the ankle roll's child link and everything fixed to it; its lowest box is the sole.
@@ -573,7 +676,12 @@ fn leg_geometry(robot: &RobotModel, zero: &ZeroPose, side: Side, ids: [Option<us
                 sole = Some((bottom, corners, link.name.clone()));
             }
         }
-        stack.extend(link.child_joints.iter().filter(|&&j| robot.joints()[j].kind == JointKind::Fixed).map(|&j| robot.joints()[j].child));
+        stack.extend(
+            link.child_joints
+                .iter()
+                .filter(|&&j| robot.joints()[j].kind == JointKind::Fixed)
+                .map(|&j| robot.joints()[j].child),
+        );
     }
     let Some((bottom, corners, sole_link)) = sole else {
         return Err(bad(format!(
@@ -584,7 +692,9 @@ fn leg_geometry(robot: &RobotModel, zero: &ZeroPose, side: Side, ids: [Option<us
     };
     let on_floor: Vec<&Vector3<f64>> = corners.iter().filter(|c| c.z - bottom < TOL_M).collect();
     if on_floor.len() != 4 {
-        return Err(bad(format!("the sole box of link `{sole_link}` is not level at zero joint angles")));
+        return Err(bad(format!(
+            "the sole box of link `{sole_link}` is not level at zero joint angles"
+        )));
     }
     let xs = on_floor.iter().map(|c| c.x - p_ap.x);
     let ys = on_floor.iter().map(|c| c.y - p_ap.y);
@@ -603,11 +713,16 @@ fn leg_geometry(robot: &RobotModel, zero: &ZeroPose, side: Side, ids: [Option<us
         d[1] * d[2]
     };
     if (area - box_area).abs() > 1e-6 * area.max(1e-9) + 1e-9 {
-        return Err(bad(format!("the sole box of link `{sole_link}` is turned about z; the sole must be aligned with the base x and y axes")));
+        return Err(bad(format!(
+            "the sole box of link `{sole_link}` is turned about z; the sole must be aligned with the base x and y axes"
+        )));
     }
     let ankle_to_sole = p_ap.z - bottom;
     if ankle_to_sole <= 0.0 {
-        return Err(bad(format!("the sole of link `{sole_link}` is not below the ankle pitch joint `{}`", name(ap))));
+        return Err(bad(format!(
+            "the sole of link `{sole_link}` is not below the ankle pitch joint `{}`",
+            name(ap)
+        )));
     }
 
     let angle = |v: Vector3<f64>| v.x.atan2(-v.z);

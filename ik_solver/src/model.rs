@@ -117,13 +117,19 @@ pub struct RobotModel {
 fn finite3(element: impl Fn() -> String, v: &[f64; 3]) -> Result<Vector3<f64>, ModelError> {
     for &x in v {
         if !x.is_finite() {
-            return Err(ModelError::NonFinite { element: element(), value: x });
+            return Err(ModelError::NonFinite {
+                element: element(),
+                value: x,
+            });
         }
     }
     Ok(Vector3::new(v[0], v[1], v[2]))
 }
 
-fn pose(element: impl Fn() -> String + Copy, p: &urdf_rs::Pose) -> Result<Isometry3<f64>, ModelError> {
+fn pose(
+    element: impl Fn() -> String + Copy,
+    p: &urdf_rs::Pose,
+) -> Result<Isometry3<f64>, ModelError> {
     let xyz = finite3(|| format!("{} xyz", element()), &p.xyz.0)?;
     let rpy = finite3(|| format!("{} rpy", element()), &p.rpy.0)?;
     Ok(Isometry3::from_parts(
@@ -133,18 +139,28 @@ fn pose(element: impl Fn() -> String + Copy, p: &urdf_rs::Pose) -> Result<Isomet
 }
 
 fn inertial(link: &urdf_rs::Link) -> Result<Option<Inertial>, ModelError> {
-    let bad = |why: String| ModelError::BadInertial { link: link.name.clone(), why };
+    let bad = |why: String| ModelError::BadInertial {
+        link: link.name.clone(),
+        why,
+    };
     let i = &link.inertial;
     let m = i.mass.value;
     if !m.is_finite() || m < 0.0 {
-        return Err(bad(format!("mass {m} kg is not a finite non-negative number")));
+        return Err(bad(format!(
+            "mass {m} kg is not a finite non-negative number"
+        )));
     }
     if m == 0.0 {
         return Ok(None);
     }
-    let origin = pose(|| format!("link `{}` inertial origin", link.name), &i.origin)?;
+    let origin = pose(
+        || format!("link `{}` inertial origin", link.name),
+        &i.origin,
+    )?;
     let t = &i.inertia;
-    let local = Matrix3::new(t.ixx, t.ixy, t.ixz, t.ixy, t.iyy, t.iyz, t.ixz, t.iyz, t.izz);
+    let local = Matrix3::new(
+        t.ixx, t.ixy, t.ixz, t.ixy, t.iyy, t.iyz, t.ixz, t.iyz, t.izz,
+    );
     if local.iter().any(|x| !x.is_finite()) {
         return Err(bad("inertia has a non-finite entry".into()));
     }
@@ -153,7 +169,9 @@ fn inertial(link: &urdf_rs::Link) -> Result<Option<Inertial>, ModelError> {
     // A small relative tolerance: URDFs are written with a few significant digits.
     let tol = 1e-6 * (a.abs() + b.abs() + c.abs()).max(1e-12);
     if a < -tol || b < -tol || c < -tol {
-        return Err(bad(format!("inertia is not positive semi-definite (principal moments {a:.3e}, {b:.3e}, {c:.3e} kg·m²)")));
+        return Err(bad(format!(
+            "inertia is not positive semi-definite (principal moments {a:.3e}, {b:.3e}, {c:.3e} kg·m²)"
+        )));
     }
     if a + b < c - tol || a + c < b - tol || b + c < a - tol {
         return Err(bad(format!(
@@ -177,15 +195,18 @@ impl RobotModel {
     /// assert_eq!(robot.dof_count(), 20);
     /// ```
     pub fn from_urdf_str(urdf: &str) -> Result<Self, ModelError> {
-        let robot = urdf_rs::read_from_string(urdf).map_err(|e| ModelError::Parse(e.to_string()))?;
+        let robot =
+            urdf_rs::read_from_string(urdf).map_err(|e| ModelError::Parse(e.to_string()))?;
         Self::from_urdf(&robot)
     }
 
     /// Reads and parses a URDF file.
     pub fn from_urdf_file(path: impl AsRef<std::path::Path>) -> Result<Self, ModelError> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ModelError::Io { path: path.display().to_string(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
         Self::from_urdf_str(&text)
     }
 
@@ -198,13 +219,21 @@ impl RobotModel {
         let mut link_index = HashMap::new();
         for l in &robot.links {
             if link_index.insert(l.name.clone(), links.len()).is_some() {
-                return Err(ModelError::DuplicateLink { link: l.name.clone() });
+                return Err(ModelError::DuplicateLink {
+                    link: l.name.clone(),
+                });
             }
             let mut collision_boxes = Vec::new();
             for (k, c) in l.collision.iter().enumerate() {
                 if let urdf_rs::Geometry::Box { size } = &c.geometry {
-                    let origin = pose(|| format!("link `{}` collision {k} origin", l.name), &c.origin)?;
-                    let size_m = finite3(|| format!("link `{}` collision {k} box size", l.name), &size.0)?;
+                    let origin = pose(
+                        || format!("link `{}` collision {k} origin", l.name),
+                        &c.origin,
+                    )?;
+                    let size_m = finite3(
+                        || format!("link `{}` collision {k} box size", l.name),
+                        &size.0,
+                    )?;
                     collision_boxes.push(CollisionBox { origin, size_m });
                 }
             }
@@ -221,14 +250,19 @@ impl RobotModel {
         let mut joint_index = HashMap::new();
         for j in &robot.joints {
             if joint_index.insert(j.name.clone(), joints.len()).is_some() {
-                return Err(ModelError::DuplicateJoint { joint: j.name.clone() });
+                return Err(ModelError::DuplicateJoint {
+                    joint: j.name.clone(),
+                });
             }
             let find = |role: &'static str, name: &str| {
-                link_index.get(name).copied().ok_or_else(|| ModelError::UnknownLink {
-                    joint: j.name.clone(),
-                    role,
-                    link: name.to_owned(),
-                })
+                link_index
+                    .get(name)
+                    .copied()
+                    .ok_or_else(|| ModelError::UnknownLink {
+                        joint: j.name.clone(),
+                        role,
+                        link: name.to_owned(),
+                    })
             };
             let parent = find("parent", &j.parent.link)?;
             let child = find("child", &j.child.link)?;
@@ -238,7 +272,10 @@ impl RobotModel {
                 urdf_rs::JointType::Continuous => JointKind::Continuous,
                 urdf_rs::JointType::Prismatic => JointKind::Prismatic,
                 ref other => {
-                    return Err(ModelError::UnsupportedJoint { joint: j.name.clone(), kind: format!("{other:?}").to_lowercase() });
+                    return Err(ModelError::UnsupportedJoint {
+                        joint: j.name.clone(),
+                        kind: format!("{other:?}").to_lowercase(),
+                    });
                 }
             };
             let origin = pose(|| format!("joint `{}` origin", j.name), &j.origin)?;
@@ -246,7 +283,9 @@ impl RobotModel {
             let axis = if kind == JointKind::Fixed {
                 Unit::new_normalize(Vector3::x())
             } else {
-                Unit::try_new(axis_v, 1e-9).ok_or_else(|| ModelError::ZeroAxis { joint: j.name.clone() })?
+                Unit::try_new(axis_v, 1e-9).ok_or_else(|| ModelError::ZeroAxis {
+                    joint: j.name.clone(),
+                })?
             };
             let limits = match kind {
                 JointKind::Fixed => None,
@@ -258,20 +297,46 @@ impl RobotModel {
                 }),
                 JointKind::Revolute | JointKind::Prismatic => {
                     let l = &j.limit;
-                    let bad = |why: String| ModelError::BadLimits { joint: j.name.clone(), why };
+                    let bad = |why: String| ModelError::BadLimits {
+                        joint: j.name.clone(),
+                        why,
+                    };
                     if l.lower.is_nan() || l.upper.is_nan() || l.lower >= l.upper {
-                        return Err(bad(format!("lower {} is not below upper {}", l.lower, l.upper)));
+                        return Err(bad(format!(
+                            "lower {} is not below upper {}",
+                            l.lower, l.upper
+                        )));
                     }
                     if !(l.velocity.is_finite() && l.velocity > 0.0) {
-                        return Err(bad(format!("velocity limit {} is not a positive number", l.velocity)));
+                        return Err(bad(format!(
+                            "velocity limit {} is not a positive number",
+                            l.velocity
+                        )));
                     }
-                    if !(l.effort >= 0.0) {
-                        return Err(bad(format!("effort limit {} is negative or not a number", l.effort)));
+                    if l.effort.is_nan() || l.effort < 0.0 {
+                        return Err(bad(format!(
+                            "effort limit {} is negative or not a number",
+                            l.effort
+                        )));
                     }
-                    Some(JointLimits { lower: l.lower, upper: l.upper, velocity: l.velocity, effort: l.effort })
+                    Some(JointLimits {
+                        lower: l.lower,
+                        upper: l.upper,
+                        velocity: l.velocity,
+                        effort: l.effort,
+                    })
                 }
             };
-            joints.push(Joint { name: j.name.clone(), kind, parent, child, origin, axis, limits, dof: None });
+            joints.push(Joint {
+                name: j.name.clone(),
+                kind,
+                parent,
+                child,
+                origin,
+                axis,
+                limits,
+                dof: None,
+            });
         }
 
         for (ji, j) in joints.iter().enumerate() {
@@ -286,9 +351,13 @@ impl RobotModel {
             child.parent_joint = Some(ji);
             links[j.parent].child_joints.push(ji);
         }
-        let roots: Vec<usize> = (0..links.len()).filter(|&i| links[i].parent_joint.is_none()).collect();
+        let roots: Vec<usize> = (0..links.len())
+            .filter(|&i| links[i].parent_joint.is_none())
+            .collect();
         if roots.len() != 1 {
-            return Err(ModelError::NotATree { roots: roots.iter().map(|&i| links[i].name.clone()).collect() });
+            return Err(ModelError::NotATree {
+                roots: roots.iter().map(|&i| links[i].name.clone()).collect(),
+            });
         }
         let root = roots[0];
 
@@ -303,8 +372,15 @@ impl RobotModel {
         }
         if order.len() != joints.len() {
             let reached: std::collections::HashSet<usize> = order.iter().copied().collect();
-            let stray = (0..joints.len()).find(|i| !reached.contains(i)).map(|i| joints[i].name.clone());
-            return Err(ModelError::NotATree { roots: stray.into_iter().map(|j| format!("(cycle through joint `{j}`)")).collect() });
+            let stray = (0..joints.len())
+                .find(|i| !reached.contains(i))
+                .map(|i| joints[i].name.clone());
+            return Err(ModelError::NotATree {
+                roots: stray
+                    .into_iter()
+                    .map(|j| format!("(cycle through joint `{j}`)"))
+                    .collect(),
+            });
         }
 
         let mut dof_joints = Vec::new();
@@ -314,7 +390,16 @@ impl RobotModel {
                 dof_joints.push(ji);
             }
         }
-        Ok(Self { name: robot.name.clone(), links, joints, root, order, dof_joints, link_index, joint_index })
+        Ok(Self {
+            name: robot.name.clone(),
+            links,
+            joints,
+            root,
+            order,
+            dof_joints,
+            link_index,
+            joint_index,
+        })
     }
 
     /// The robot's name from the URDF.
@@ -351,31 +436,48 @@ impl RobotModel {
     }
     /// Names of the movable joints, in joint-vector order.
     pub fn dof_names(&self) -> impl Iterator<Item = &str> {
-        self.dof_joints.iter().map(|&j| self.joints[j].name.as_str())
+        self.dof_joints
+            .iter()
+            .map(|&j| self.joints[j].name.as_str())
     }
     /// Dof index of a movable joint, by name.
     pub fn dof_index(&self, joint_name: &str) -> Option<usize> {
-        self.joint_index(joint_name).and_then(|j| self.joints[j].dof)
+        self.joint_index(joint_name)
+            .and_then(|j| self.joints[j].dof)
     }
     /// Total mass (kg).
     pub fn total_mass_kg(&self) -> f64 {
-        self.links.iter().filter_map(|l| l.inertial.map(|i| i.mass_kg)).sum()
+        self.links
+            .iter()
+            .filter_map(|l| l.inertial.map(|i| i.mass_kg))
+            .sum()
     }
 
     /// Checks a joint vector: right length, every value finite.
     pub fn check_joint_vector(&self, q: &[f64]) -> Result<(), IkError> {
         if q.len() != self.dof_count() {
-            return Err(IkError::JointCount { expected: self.dof_count(), got: q.len() });
+            return Err(IkError::JointCount {
+                expected: self.dof_count(),
+                got: q.len(),
+            });
         }
         if let Some((i, &v)) = q.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(IkError::NonFiniteJoint { joint: self.joints[self.dof_joints[i]].name.clone(), value: v });
+            return Err(IkError::NonFiniteJoint {
+                joint: self.joints[self.dof_joints[i]].name.clone(),
+                value: v,
+            });
         }
         Ok(())
     }
 
     /// Forward kinematics: the world pose of every link (indexed like [`Self::links`]) for a
     /// base (root link) pose and a joint vector. Writes into `poses` to avoid allocation.
-    pub fn link_poses_into(&self, base: &Isometry3<f64>, q: &[f64], poses: &mut Vec<Isometry3<f64>>) -> Result<(), IkError> {
+    pub fn link_poses_into(
+        &self,
+        base: &Isometry3<f64>,
+        q: &[f64],
+        poses: &mut Vec<Isometry3<f64>>,
+    ) -> Result<(), IkError> {
         self.check_joint_vector(q)?;
         poses.clear();
         poses.resize(self.links.len(), Isometry3::identity());
@@ -383,12 +485,14 @@ impl RobotModel {
         for &ji in &self.order {
             let j = &self.joints[ji];
             let motion = match (j.kind, j.dof) {
-                (JointKind::Revolute | JointKind::Continuous, Some(d)) => {
-                    Isometry3::from_parts(Translation3::identity(), UnitQuaternion::from_axis_angle(&j.axis, q[d]))
-                }
-                (JointKind::Prismatic, Some(d)) => {
-                    Isometry3::from_parts(Translation3::from(j.axis.into_inner() * q[d]), UnitQuaternion::identity())
-                }
+                (JointKind::Revolute | JointKind::Continuous, Some(d)) => Isometry3::from_parts(
+                    Translation3::identity(),
+                    UnitQuaternion::from_axis_angle(&j.axis, q[d]),
+                ),
+                (JointKind::Prismatic, Some(d)) => Isometry3::from_parts(
+                    Translation3::from(j.axis.into_inner() * q[d]),
+                    UnitQuaternion::identity(),
+                ),
                 _ => Isometry3::identity(),
             };
             poses[j.child] = poses[j.parent] * j.origin * motion;
@@ -397,7 +501,11 @@ impl RobotModel {
     }
 
     /// Forward kinematics, allocating: see [`Self::link_poses_into`].
-    pub fn link_poses(&self, base: &Isometry3<f64>, q: &[f64]) -> Result<Vec<Isometry3<f64>>, IkError> {
+    pub fn link_poses(
+        &self,
+        base: &Isometry3<f64>,
+        q: &[f64],
+    ) -> Result<Vec<Isometry3<f64>>, IkError> {
         let mut poses = Vec::new();
         self.link_poses_into(base, q, &mut poses)?;
         Ok(poses)
@@ -419,12 +527,20 @@ impl RobotModel {
                 sum += i.mass_kg * (pose * Point3::from(i.com_in_link_m)).coords;
             }
         }
-        if m > 0.0 { Point3::from(sum / m) } else { poses[self.root].translation.vector.into() }
+        if m > 0.0 {
+            Point3::from(sum / m)
+        } else {
+            poses[self.root].translation.vector.into()
+        }
     }
 
     /// Mass (kg) and centre of mass (world) of the subtree below joint `joint` (its child link
     /// and everything after it), from link poses.
-    pub fn subtree_mass_and_com(&self, poses: &[Isometry3<f64>], joint: usize) -> (f64, Point3<f64>) {
+    pub fn subtree_mass_and_com(
+        &self,
+        poses: &[Isometry3<f64>],
+        joint: usize,
+    ) -> (f64, Point3<f64>) {
         let (mut m, mut sum) = (0.0, Vector3::zeros());
         let mut stack = vec![self.joints[joint].child];
         while let Some(l) = stack.pop() {
@@ -435,6 +551,13 @@ impl RobotModel {
             }
             stack.extend(link.child_joints.iter().map(|&j| self.joints[j].child));
         }
-        (m, if m > 0.0 { Point3::from(sum / m) } else { Point3::origin() })
+        (
+            m,
+            if m > 0.0 {
+                Point3::from(sum / m)
+            } else {
+                Point3::origin()
+            },
+        )
     }
 }

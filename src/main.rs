@@ -1,0 +1,141 @@
+//! `biped`: the commands users run. `biped plan` plans a walk offline; the ROS 2 fleet
+//! (`biped launch`) and the simulated walk (`biped walk`) join as they land.
+
+mod plan;
+mod plots;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
+use ik_solver::{BipedModel, LegRoleMap};
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "biped",
+    version,
+    about = "A statically stable biped walk for small humanoids (ROS 2 node fleet and tools)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, clap::Args)]
+struct RobotArgs {
+    /// Robot URDF. Default: the built-in 20-DOF robot (config/biped.urdf).
+    #[arg(long, value_name = "URDF")]
+    robot: Option<PathBuf>,
+    /// YAML naming the leg joints (`left:`/`right:` with hip_roll, hip_pitch, knee,
+    /// ankle_pitch, ankle_roll and optional hip_yaw), for URDFs whose legs are not found by
+    /// their axes.
+    #[arg(long, value_name = "YAML")]
+    leg_map: Option<PathBuf>,
+    /// ROS 2 parameter file with a `gait_planner:` section. Default: built-in defaults
+    /// (the same as config/gait.yaml).
+    #[arg(long, value_name = "YAML")]
+    params: Option<PathBuf>,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Plan a walk offline; write it as CSV (one row per control tick) and pictures.
+    Plan {
+        /// Number of steps (swings before the closing half step).
+        #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+        steps: u32,
+        #[command(flatten)]
+        robot: RobotArgs,
+        /// Where to write the CSV.
+        #[arg(long, value_name = "FILE")]
+        csv: PathBuf,
+        /// Folder for the pictures (SVG). Default: the CSV's folder.
+        #[arg(long, value_name = "DIR")]
+        plots: Option<PathBuf>,
+        /// Write no pictures.
+        #[arg(long, conflicts_with = "plots")]
+        no_plots: bool,
+    },
+}
+
+fn load_model(args: &RobotArgs) -> anyhow::Result<BipedModel> {
+    let role_map: Option<LegRoleMap> = match &args.leg_map {
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read leg map {}", p.display()))?;
+            Some(
+                serde_norway::from_str(&text)
+                    .with_context(|| format!("leg map {}", p.display()))?,
+            )
+        }
+        None => None,
+    };
+    match &args.robot {
+        Some(p) => BipedModel::from_urdf_file(p, role_map.as_ref())
+            .with_context(|| format!("robot {}", p.display())),
+        None => BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, role_map.as_ref())
+            .context("built-in robot"),
+    }
+}
+
+fn load_params(args: &RobotArgs) -> anyhow::Result<GaitParams> {
+    Ok(match &args.params {
+        Some(p) => GaitParams::from_ros_yaml_file(p)?,
+        None => GaitParams::default(),
+    })
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Plan {
+            steps,
+            robot,
+            csv,
+            plots,
+            no_plots,
+        } => {
+            let model = load_model(&robot)?;
+            let params = load_params(&robot)?;
+            let mut planner = GaitPlanner::new(model, params)?;
+            let samples = planner.plan(WalkRequest::Steps(steps))?;
+            plan::write_csv_file(&csv, planner.model().robot(), &samples)?;
+            let mut summary = plan::PlanSummary::of(&samples);
+            summary.files.push(csv.clone());
+            if !no_plots {
+                let dir =
+                    plots.unwrap_or_else(|| csv.parent().map(PathBuf::from).unwrap_or_default());
+                summary
+                    .files
+                    .extend(plots::write_plots(&dir, &planner, &samples)?);
+            }
+            let c = planner.config();
+            println!(
+                "planned {steps} steps of {:.3} m for {}: {} ticks at {} Hz, {:.2} s, base moved {:.3} m, minimum CoM margin {:.4} m (required {:.4} m)",
+                c.step_length_m,
+                planner.model().robot().name(),
+                summary.rows,
+                c.control_rate_hz,
+                summary.duration_s,
+                summary.distance_m,
+                summary.min_margin_m,
+                c.min_com_margin_m
+            );
+            for f in &summary.files {
+                println!("wrote {}", f.display());
+            }
+            Ok(())
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("biped: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

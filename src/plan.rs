@@ -1,0 +1,117 @@
+//! `biped plan`: a walk planned offline, written as CSV (one row per control tick) plus
+//! pictures.
+//!
+//! The CSV is a contract that other tools read. Header, in this order:
+//! `t,phase,support,base_x,base_y,base_z,base_yaw,l_ankle_x,l_ankle_y,l_ankle_z,r_ankle_x,
+//! r_ankle_y,r_ankle_z,com_x,com_y,com_z,margin`, then one column per movable joint named by
+//! its URDF joint name (URDF order), in radians. Numbers are written with Rust's shortest
+//! round-trip formatting, so a reader gets back exactly the planned `f64`s.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use gait_planner::GaitSample;
+use ik_solver::RobotModel;
+
+/// The fixed first columns of the plan CSV.
+pub const CSV_COLUMNS: [&str; 17] = [
+    "t",
+    "phase",
+    "support",
+    "base_x",
+    "base_y",
+    "base_z",
+    "base_yaw",
+    "l_ankle_x",
+    "l_ankle_y",
+    "l_ankle_z",
+    "r_ankle_x",
+    "r_ankle_y",
+    "r_ankle_z",
+    "com_x",
+    "com_y",
+    "com_z",
+    "margin",
+];
+
+/// Writes the plan CSV.
+pub fn write_csv(
+    out: &mut impl Write,
+    robot: &RobotModel,
+    samples: &[GaitSample],
+) -> std::io::Result<()> {
+    let mut header: Vec<&str> = CSV_COLUMNS.to_vec();
+    header.extend(robot.dof_names());
+    writeln!(out, "{}", header.join(","))?;
+    for s in samples {
+        let b = &s.base_world.translation;
+        let (_, _, yaw) = s.base_world.rotation.euler_angles();
+        let [l, r] = &s.ankles_world_m;
+        let c = &s.com_world_m;
+        write!(out, "{},{},{}", s.t_s, s.phase, s.support)?;
+        for v in [
+            b.x, b.y, b.z, yaw, l.x, l.y, l.z, r.x, r.y, r.z, c.x, c.y, c.z, s.margin_m,
+        ] {
+            write!(out, ",{}", v + 0.0)?; // + 0.0 writes -0 as 0
+        }
+        for v in &s.joints_rad {
+            write!(out, ",{}", v + 0.0)?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
+}
+
+/// Writes the CSV to a file, creating its folder.
+pub fn write_csv_file(
+    path: &Path,
+    robot: &RobotModel,
+    samples: &[GaitSample],
+) -> anyhow::Result<()> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create folder {}", dir.display()))?;
+    }
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let mut out = std::io::BufWriter::new(file);
+    write_csv(&mut out, robot, samples)
+        .and_then(|_| out.flush())
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// What a plan covered, for the summary line.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanSummary {
+    /// Ticks.
+    pub rows: usize,
+    /// Duration (s).
+    pub duration_s: f64,
+    /// Forward distance of the base from the first to the last tick (m).
+    pub distance_m: f64,
+    /// Smallest CoM margin (m).
+    pub min_margin_m: f64,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+impl PlanSummary {
+    /// Sums up samples.
+    pub fn of(samples: &[GaitSample]) -> Self {
+        let (first, last) = (samples.first(), samples.last());
+        Self {
+            rows: samples.len(),
+            duration_s: last.map(|s| s.t_s).unwrap_or(0.0) - first.map(|s| s.t_s).unwrap_or(0.0),
+            distance_m: match (first, last) {
+                (Some(a), Some(b)) => b.base_world.translation.x - a.base_world.translation.x,
+                _ => 0.0,
+            },
+            min_margin_m: samples
+                .iter()
+                .map(|s| s.margin_m)
+                .fold(f64::INFINITY, f64::min),
+            files: Vec::new(),
+        }
+    }
+}

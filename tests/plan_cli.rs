@@ -1,0 +1,320 @@
+//! `biped plan` end to end: the CSV contract (header, units, every number agreeing with
+//! forward kinematics of the URDF), the golden trajectory, and clear errors on bad input.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use ik_solver::{BipedModel, Side};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+const HEADER: &str = "t,phase,support,base_x,base_y,base_z,base_yaw,l_ankle_x,l_ankle_y,l_ankle_z,r_ankle_x,r_ankle_y,r_ankle_z,com_x,com_y,com_z,margin";
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("biped-test-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn biped(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_biped"))
+        .args(args)
+        .output()
+        .expect("biped runs")
+}
+
+struct Csv {
+    header: Vec<String>,
+    rows: Vec<Vec<String>>,
+}
+
+impl Csv {
+    fn read(path: &Path) -> Self {
+        let text = std::fs::read_to_string(path).unwrap();
+        let mut lines = text.lines();
+        let header = lines.next().unwrap().split(',').map(String::from).collect();
+        let rows = lines
+            .map(|l| l.split(',').map(String::from).collect())
+            .collect();
+        Self { header, rows }
+    }
+    fn col(&self, name: &str) -> usize {
+        self.header
+            .iter()
+            .position(|h| h == name)
+            .unwrap_or_else(|| panic!("no column {name}"))
+    }
+    fn num(&self, row: &[String], name: &str) -> f64 {
+        row[self.col(name)].parse().unwrap()
+    }
+}
+
+#[test]
+fn csv_has_the_contract_header_and_agrees_with_forward_kinematics() {
+    let dir = tmp("fk");
+    let csv_path = dir.join("plan.csv");
+    let out = biped(&[
+        "plan",
+        "--steps",
+        "3",
+        "--csv",
+        csv_path.to_str().unwrap(),
+        "--no-plots",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let csv = Csv::read(&csv_path);
+    let model = BipedModel::from_urdf_file(root().join("config/biped.urdf"), None).unwrap();
+    let robot = model.robot();
+
+    // Header: the fixed columns, then every movable joint by URDF name, in URDF order.
+    assert_eq!(csv.header[..17].join(","), HEADER);
+    let names: Vec<&str> = robot.dof_names().collect();
+    assert_eq!(
+        csv.header[17..],
+        names.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+    );
+
+    let mut phases: HashMap<String, usize> = HashMap::new();
+    let mut prev_t = -1.0;
+    for row in &csv.rows {
+        let t = csv.num(row, "t");
+        assert!(t > prev_t);
+        prev_t = t;
+        *phases.entry(row[1].clone()).or_default() += 1;
+        assert!(
+            ["double", "left", "right"].contains(&row[2].as_str()),
+            "support {}",
+            row[2]
+        );
+        let base = Isometry3::from_parts(
+            Translation3::new(
+                csv.num(row, "base_x"),
+                csv.num(row, "base_y"),
+                csv.num(row, "base_z"),
+            ),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, csv.num(row, "base_yaw")),
+        );
+        let q: Vec<f64> = names.iter().map(|n| csv.num(row, n)).collect();
+        let poses = robot.link_poses(&base, &q).unwrap();
+        for (side, p) in [(Side::Left, "l"), (Side::Right, "r")] {
+            let a = model.leg(side).ankle_world(robot, &poses);
+            for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+                let v = csv.num(row, &format!("{p}_ankle_{axis}"));
+                assert!(
+                    (a[k] - v).abs() < 1e-9,
+                    "t = {t}: {p}_ankle_{axis} {v} vs FK {}",
+                    a[k]
+                );
+            }
+            // Feet never below the floor (ankle-to-sole 0.03 m on this robot).
+            assert!(a.z >= 0.03 - 1e-12);
+        }
+        let com = robot.center_of_mass(&poses);
+        for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+            let v = csv.num(row, &format!("com_{axis}"));
+            assert!(
+                (com[k] - v).abs() < 1e-9,
+                "t = {t}: com_{axis} {v} vs FK {}",
+                com[k]
+            );
+        }
+        // Single support: the margin is the distance to the nearest edge of the stance sole,
+        // 0.10 x 0.06 m reaching 0.04 m behind and 0.06 m ahead of the ankle.
+        let margin = csv.num(row, "margin");
+        if row[2] != "double" {
+            let p = &row[2][..1];
+            let (ax, ay) = (
+                csv.num(row, &format!("{p}_ankle_x")),
+                csv.num(row, &format!("{p}_ankle_y")),
+            );
+            let (cx, cy) = (com.x - ax, com.y - ay);
+            let want = (cx + 0.04).min(0.06 - cx).min(cy + 0.03).min(0.03 - cy);
+            assert!(
+                (margin - want).abs() < 1e-9,
+                "t = {t}: margin {margin} vs {want}"
+            );
+        }
+        assert!(margin > 0.0, "t = {t}: CoM outside");
+    }
+    for p in [
+        "crouch",
+        "shift",
+        "half_step",
+        "step",
+        "final_half_step",
+        "center",
+    ] {
+        assert!(phases.contains_key(p), "phase {p} missing");
+    }
+    // 3 steps of 0.045 m: feet end together 0.135 m ahead.
+    let last = csv.rows.last().unwrap();
+    assert!(
+        (csv.num(last, "l_ankle_x") - 0.135).abs() < 1e-12
+            && (csv.num(last, "r_ankle_x") - 0.135).abs() < 1e-12
+    );
+}
+
+fn compare_csv(got: &Csv, want: &Csv) -> Result<(), String> {
+    if got.header != want.header {
+        return Err("header differs".into());
+    }
+    if got.rows.len() != want.rows.len() {
+        return Err(format!(
+            "{} rows, golden has {}",
+            got.rows.len(),
+            want.rows.len()
+        ));
+    }
+    for (i, (g, w)) in got.rows.iter().zip(&want.rows).enumerate() {
+        for (k, (a, b)) in g.iter().zip(w).enumerate() {
+            let same = match (a.parse::<f64>(), b.parse::<f64>()) {
+                (Ok(x), Ok(y)) => (x - y).abs() <= 1e-9,
+                _ => a == b,
+            };
+            if !same {
+                return Err(format!(
+                    "row {} column {}: {a} vs golden {b}",
+                    i + 1,
+                    got.header[k]
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The default robot's 2-step walk at 20 Hz, compared with `tests/golden/plan_default_2steps_20hz.csv`
+/// to 1e-9. Regenerate on purpose only: `BIPED_BLESS=1 cargo test --test plan_cli golden`.
+#[test]
+fn golden_trajectory_of_the_default_robot() {
+    let golden = root().join("tests/golden/plan_default_2steps_20hz.csv");
+    let dir = tmp("golden");
+    let csv_path = dir.join("plan.csv");
+    let params = root().join("tests/data/golden_params.yaml");
+    let out = biped(&[
+        "plan",
+        "--steps",
+        "2",
+        "--params",
+        params.to_str().unwrap(),
+        "--csv",
+        csv_path.to_str().unwrap(),
+        "--no-plots",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    if std::env::var_os("BIPED_BLESS").is_some() {
+        std::fs::copy(&csv_path, &golden).unwrap();
+        eprintln!("golden trajectory rewritten: {}", golden.display());
+        return;
+    }
+    assert!(
+        golden.exists(),
+        "no golden file {}; create it on purpose with BIPED_BLESS=1",
+        golden.display()
+    );
+    if let Err(e) = compare_csv(&Csv::read(&csv_path), &Csv::read(&golden)) {
+        panic!(
+            "the plan differs from the golden trajectory: {e}\nIf the change is intended, regenerate it with BIPED_BLESS=1 and review the diff."
+        );
+    }
+}
+
+#[test]
+fn plots_are_written_beside_the_csv() {
+    let dir = tmp("plots");
+    let csv_path = dir.join("plan.csv");
+    let out = biped(&["plan", "--steps", "2", "--csv", csv_path.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in ["top_view.svg", "swing_curve.svg", "joint_angles.svg"] {
+        let text = std::fs::read_to_string(dir.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
+        assert!(
+            text.starts_with("<svg") && text.contains("</svg>") && text.len() > 2000,
+            "{f} is not a drawing"
+        );
+    }
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("planned 2 steps") && stdout.contains("top_view.svg"),
+        "{stdout}"
+    );
+}
+
+fn fails_naming(args: &[&str], needles: &[&str]) {
+    let out = biped(args);
+    assert!(!out.status.success(), "{args:?} should fail");
+    let err = String::from_utf8_lossy(&out.stderr);
+    for n in needles {
+        assert!(
+            err.contains(n),
+            "{args:?}: error does not name {n:?}: {err}"
+        );
+    }
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn bad_input_gets_a_clear_error() {
+    let dir = tmp("bad");
+    let csv = dir.join("x.csv");
+    let csv = csv.to_str().unwrap();
+    fails_naming(
+        &["plan", "--robot", "/nonexistent/robot.urdf", "--csv", csv],
+        &["/nonexistent/robot.urdf"],
+    );
+    let bad_params = dir.join("bad.yaml");
+    std::fs::write(
+        &bad_params,
+        "gait_planner:\n  ros__parameters:\n    step_lenght_m: 0.03\n",
+    )
+    .unwrap();
+    fails_naming(
+        &[
+            "plan",
+            "--params",
+            bad_params.to_str().unwrap(),
+            "--csv",
+            csv,
+        ],
+        &["step_lenght_m", "bad.yaml"],
+    );
+    let unstable = dir.join("unstable.yaml");
+    std::fs::write(
+        &unstable,
+        "gait_planner:\n  ros__parameters:\n    min_com_margin_m: 0.04\n",
+    )
+    .unwrap();
+    fails_naming(
+        &["plan", "--params", unstable.to_str().unwrap(), "--csv", csv],
+        &["shift", "CoM margin", "0.0400"],
+    );
+    let one_leg = dir.join("one_leg.urdf");
+    let text = std::fs::read_to_string(root().join("config/biped.urdf"))
+        .unwrap()
+        .replace(
+            "name=\"l_knee\" type=\"revolute\"",
+            "name=\"l_knee\" type=\"fixed\"",
+        );
+    std::fs::write(&one_leg, text).unwrap();
+    fails_naming(
+        &["plan", "--robot", one_leg.to_str().unwrap(), "--csv", csv],
+        &["not a supported biped", "1 leg chain"],
+    );
+    fails_naming(&["plan", "--steps", "0", "--csv", csv], &["--steps"]);
+    assert!(!Path::new(csv).exists(), "nothing written on error");
+}
