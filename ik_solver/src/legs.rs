@@ -374,7 +374,23 @@ pub(crate) fn find_legs(
     let (Some(a), Some(b)) = (legs.next(), legs.next()) else {
         return Err(ModelError::NotABiped("fewer than two legs".into()));
     };
-    Ok([a?, b?])
+    let (left, right) = (a?, b?);
+    // A role map can swap the sides (or name one leg twice): the left hip must be left of the right one.
+    if left.hip_in_base_m.y <= right.hip_in_base_m.y {
+        let hip = |l: &Leg| {
+            l.joint(JointRole::HipRoll)
+                .map(|j| j.name.clone())
+                .unwrap_or_default()
+        };
+        return Err(ModelError::RoleMap(format!(
+            "the left leg's hip roll joint `{}` is at y = {:.4} m, not left of the right leg's `{}` at y = {:.4} m (left and right swapped, or one leg named twice?)",
+            hip(&left),
+            left.hip_in_base_m.y,
+            hip(&right),
+            right.hip_in_base_m.y
+        )));
+    }
+    Ok([left, right])
 }
 
 fn role_of(robot: &RobotModel, zero: &ZeroPose, j: usize) -> Option<(Axis, f64)> {

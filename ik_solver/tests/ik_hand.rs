@@ -7,7 +7,11 @@ use ik_solver::{AnkleTarget, IkError, JointRole as R, Side};
 
 fn assert_angles(got: &[f64; 6], want: [f64; 6]) {
     for (k, (g, w)) in got.iter().zip(want).enumerate() {
-        assert!((g - w).abs() < 1e-12, "role {:?}: got {g}, want {w}", R::ALL[k]);
+        assert!(
+            (g - w).abs() < 1e-12,
+            "role {:?}: got {g}, want {w}",
+            R::ALL[k]
+        );
     }
 }
 
@@ -27,7 +31,10 @@ fn default_robot_leg_geometry_is_read_from_the_urdf() {
         assert!((leg.sole.y_min_m + 0.03).abs() < 1e-12 && (leg.sole.y_max_m - 0.03).abs() < 1e-12);
     }
     assert_eq!(b.leg(Side::Left).joint(R::Knee).unwrap().name, "l_knee");
-    assert_eq!(b.leg(Side::Right).joint(R::AnkleRoll).unwrap().name, "r_ankle_roll");
+    assert_eq!(
+        b.leg(Side::Right).joint(R::AnkleRoll).unwrap().name,
+        "r_ankle_roll"
+    );
 }
 
 #[test]
@@ -50,8 +57,24 @@ fn forward_and_sideways_targets() {
     let b = default_biped();
     // (x, y, z) -> [roll, hip flexion, knee, ankle (knee - hip), -roll] from the formulas.
     let cases = [
-        ([0.03, 0.02, -0.15], [0.132551532296674, 0.736950234872413, 1.082484369887968, 0.345534135015555]),
-        ([-0.04, -0.03, -0.14], [-0.211093333222747, 0.326586283538549, 1.198025314499217, 0.871439030960668]),
+        (
+            [0.03, 0.02, -0.15],
+            [
+                0.132551532296674,
+                0.736950234872413,
+                1.082484369887968,
+                0.345534135015555,
+            ],
+        ),
+        (
+            [-0.04, -0.03, -0.14],
+            [
+                -0.211093333222747,
+                0.326586283538549,
+                1.198025314499217,
+                0.871439030960668,
+            ],
+        ),
     ];
     for ([x, y, z], [roll, hip, knee, ankle]) in cases {
         let sol = b.solve_leg(Side::Left, &AnkleTarget::new(x, y, z)).unwrap();
@@ -67,39 +90,87 @@ fn six_joint_leg_with_flipped_axes_offset_hip_and_yaw() {
     // frame the formulas give roll 0.030660279288661, hip 0.666001708999223,
     // knee 1.148226652432100, ankle 0.482224943432877.
     let b = biped6();
-    let (roll, hip, knee, ankle) = (0.030660279288661, 0.666001708999223, 1.148226652432100, 0.482224943432877);
-    let t = AnkleTarget { ankle_in_hip_m: nalgebra::Vector3::new(0.02, 0.01, -0.19), foot_yaw_rad: 0.2 };
+    let (roll, hip, knee, ankle) = (
+        0.030660279288661,
+        0.666001708999223,
+        1.1482266524321,
+        0.482224943432877,
+    );
+    let t = AnkleTarget {
+        ankle_in_hip_m: nalgebra::Vector3::new(0.02, 0.01, -0.19),
+        foot_yaw_rad: 0.2,
+    };
     let l = b.solve_leg(Side::Left, &t).unwrap();
     assert!(l.is_exact(), "{:?}", l.issues);
     assert_angles(&l.angles_rad, [0.2, -roll, -hip, knee, -ankle, -roll]);
     let r = b.solve_leg(Side::Right, &t).unwrap();
     assert!(r.is_exact(), "{:?}", r.issues);
     assert_angles(&r.angles_rad, [0.2, roll, -hip, -knee, -ankle, -roll]);
-    assert_eq!(b.leg(Side::Right).joint(R::Knee).unwrap().name, "RightLegJ4");
-    assert_eq!(b.leg(Side::Left).joint(R::HipYaw).unwrap().name, "LeftLegJ1");
+    assert_eq!(
+        b.leg(Side::Right).joint(R::Knee).unwrap().name,
+        "RightLegJ4"
+    );
+    assert_eq!(
+        b.leg(Side::Left).joint(R::HipYaw).unwrap().name,
+        "LeftLegJ1"
+    );
 }
 
 #[test]
 fn non_finite_targets_are_refused_naming_the_field() {
     let b = default_biped();
-    let err = b.solve_leg(Side::Right, &AnkleTarget::new(0.0, f64::NAN, -0.15)).unwrap_err();
-    assert!(matches!(err, IkError::NonFiniteTarget { side: Side::Right, field: "ankle_in_hip.y", .. }));
+    let err = b
+        .solve_leg(Side::Right, &AnkleTarget::new(0.0, f64::NAN, -0.15))
+        .unwrap_err();
+    assert!(matches!(
+        err,
+        IkError::NonFiniteTarget {
+            side: Side::Right,
+            field: "ankle_in_hip.y",
+            ..
+        }
+    ));
     assert!(err.to_string().contains("right leg") && err.to_string().contains("ankle_in_hip.y"));
-    let err = b.solve_leg(Side::Left, &AnkleTarget { foot_yaw_rad: f64::INFINITY, ..AnkleTarget::new(0.0, 0.0, -0.15) });
-    assert!(matches!(err, Err(IkError::NonFiniteTarget { field: "foot_yaw", .. })));
+    let err = b.solve_leg(
+        Side::Left,
+        &AnkleTarget {
+            foot_yaw_rad: f64::INFINITY,
+            ..AnkleTarget::new(0.0, 0.0, -0.15)
+        },
+    );
+    assert!(matches!(
+        err,
+        Err(IkError::NonFiniteTarget {
+            field: "foot_yaw",
+            ..
+        })
+    ));
     // A refused target leaves the joint vector untouched.
     let mut q = vec![0.5; b.robot().dof_count()];
-    assert!(b.solve_legs(&AnkleTarget::new(0.0, 0.0, -0.15), &AnkleTarget::new(f64::NAN, 0.0, -0.15), &mut q).is_err());
+    assert!(
+        b.solve_legs(
+            &AnkleTarget::new(0.0, 0.0, -0.15),
+            &AnkleTarget::new(f64::NAN, 0.0, -0.15),
+            &mut q
+        )
+        .is_err()
+    );
     assert!(q.iter().all(|&v| v == 0.5));
 }
 
 #[test]
 fn unreachable_target_is_clamped_and_reported_with_the_amount() {
     let b = default_biped();
-    let sol = b.solve_leg(Side::Left, &AnkleTarget::new(0.0, 0.0, -0.25)).unwrap();
+    let sol = b
+        .solve_leg(Side::Left, &AnkleTarget::new(0.0, 0.0, -0.25))
+        .unwrap();
     assert!(sol.angles_rad.iter().all(|a| a.is_finite()));
     let reach = sol.issues.iter().find_map(|i| match i {
-        ik_solver::IkIssue::OutOfReach { side, distance_m, reach_m } => Some((*side, *distance_m, *reach_m)),
+        ik_solver::IkIssue::OutOfReach {
+            side,
+            distance_m,
+            reach_m,
+        } => Some((*side, *distance_m, *reach_m)),
         _ => None,
     });
     let (side, d, r) = reach.expect("out of reach reported");
@@ -107,18 +178,32 @@ fn unreachable_target_is_clamped_and_reported_with_the_amount() {
     assert!((d - 0.25).abs() < 1e-12 && (r - 0.18).abs() < 1e-12);
     // Clamped onto the reach: the leg is straight.
     assert!(sol.angle(R::Knee).abs() < 1e-6);
-    assert!(sol.issues[0].to_string().contains("by 0.0700 m"), "{}", sol.issues[0]);
+    assert!(
+        sol.issues[0].to_string().contains("by 0.0700 m"),
+        "{}",
+        sol.issues[0]
+    );
 }
 
 #[test]
 fn joint_limit_is_clamped_and_names_the_joint() {
     let b = default_biped();
     // Far to the side: hip roll beyond its 0.6 rad limit.
-    let sol = b.solve_leg(Side::Left, &AnkleTarget::new(0.0, 0.12, -0.12)).unwrap();
+    let sol = b
+        .solve_leg(Side::Left, &AnkleTarget::new(0.0, 0.12, -0.12))
+        .unwrap();
     let lim = sol
         .issues
         .iter()
-        .find(|i| matches!(i, ik_solver::IkIssue::JointLimit { role: R::HipRoll, .. }))
+        .find(|i| {
+            matches!(
+                i,
+                ik_solver::IkIssue::JointLimit {
+                    role: R::HipRoll,
+                    ..
+                }
+            )
+        })
         .expect("hip roll clamp reported");
     assert!(lim.to_string().contains("`l_hip_roll`"), "{lim}");
     assert!((sol.angle(R::HipRoll) - 0.6).abs() < 1e-12);
@@ -127,8 +212,14 @@ fn joint_limit_is_clamped_and_names_the_joint() {
 #[test]
 fn yaw_on_a_five_joint_leg_is_reported_and_ignored() {
     let b = default_biped();
-    let t = AnkleTarget { foot_yaw_rad: 0.1, ..AnkleTarget::new(0.0, 0.0, -0.16) };
+    let t = AnkleTarget {
+        foot_yaw_rad: 0.1,
+        ..AnkleTarget::new(0.0, 0.0, -0.16)
+    };
     let sol = b.solve_leg(Side::Left, &t).unwrap();
-    assert!(matches!(sol.issues[..], [ik_solver::IkIssue::NoYawJoint { .. }]));
+    assert!(matches!(
+        sol.issues[..],
+        [ik_solver::IkIssue::NoYawJoint { .. }]
+    ));
     assert_eq!(sol.angle(R::HipYaw), 0.0);
 }

@@ -26,13 +26,22 @@ fn check_clamped(b: &BipedModel, side: Side, t: AnkleTarget) -> Result<(), TestC
     for (role, j) in leg.present() {
         let a = sol.angle(role);
         prop_assert!(a.is_finite());
-        prop_assert!(a >= j.limits.lower && a <= j.limits.upper, "{} = {a} outside limits", j.name);
+        prop_assert!(
+            a >= j.limits.lower && a <= j.limits.upper,
+            "{} = {a} outside limits",
+            j.name
+        );
     }
     let mut q = vec![0.0; b.robot().dof_count()];
     b.write_leg(&sol, &mut q);
     let got = b.ankles_in_hips(&q).unwrap()[side.index()];
-    let missed = (got - t.ankle_in_hip_m).norm() > 1e-9 || foot_tilt_rad(b, side, &q, t.foot_yaw_rad) > 1e-9;
-    prop_assert!(!missed || !sol.issues.is_empty(), "missed the target without a flag: {:?}", t);
+    let missed =
+        (got - t.ankle_in_hip_m).norm() > 1e-9 || foot_tilt_rad(b, side, &q, t.foot_yaw_rad) > 1e-9;
+    prop_assert!(
+        !missed || !sol.issues.is_empty(),
+        "missed the target without a flag: {:?}",
+        t
+    );
     Ok(())
 }
 
@@ -69,7 +78,11 @@ fn roundtrip_covers_most_of_the_sampled_workspace() {
     let n = 20;
     for i in 0..n {
         for k in 0..n {
-            let t = AnkleTarget::new(-0.05 + 0.1 * i as f64 / n as f64, -0.04 + 0.08 * k as f64 / n as f64, -0.15);
+            let t = AnkleTarget::new(
+                -0.05 + 0.1 * i as f64 / n as f64,
+                -0.04 + 0.08 * k as f64 / n as f64,
+                -0.15,
+            );
             exact += usize::from(b.solve_leg(Side::Left, &t).unwrap().is_exact());
         }
     }

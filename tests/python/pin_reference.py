@@ -6,7 +6,8 @@ Used by the Rust integration tests to cross-check our own kinematics.
 Usage:
     python pin_reference.py URDF_PATH  < request.json  > answer.json
 
-Request (one JSON object on stdin; every key is optional):
+Request (one JSON object on stdin, or a JSON list of such objects; every key
+is optional):
     {
       "base":   {"xyz": [x, y, z], "rpy": [roll, pitch, yaw]},
       "q":      {"joint_name": value, ...},
@@ -20,7 +21,8 @@ Request (one JSON object on stdin; every key is optional):
   * "frames" lists URDF link names whose world placement is wanted. Links
     attached through fixed joints are fine (Pinocchio keeps them as frames).
 
-Answer (one JSON object on stdout):
+Answer (one JSON object on stdout; for a list of requests, a list of answers
+in the same order, the URDF loaded once):
     {
       "com":    [x, y, z],           # whole-robot centre of mass, world frame
       "mass":   total_mass,          # kg, sum over all links
@@ -129,11 +131,15 @@ def main(argv):
         request = json.load(sys.stdin)
     except json.JSONDecodeError as e:
         raise RequestError(f"stdin is not valid JSON: {e}") from None
-    if not isinstance(request, dict):
-        raise RequestError("stdin must hold one JSON object")
-    unknown = set(request) - {"base", "q", "frames"}
-    if unknown:
-        raise RequestError(f"unknown key(s) in request: {', '.join(sorted(unknown))}")
+    batch = isinstance(request, list)
+    requests = request if batch else [request]
+    for k, r in enumerate(requests):
+        where = f"request {k}" if batch else "request"
+        if not isinstance(r, dict):
+            raise RequestError("stdin must hold one JSON object or a list of JSON objects")
+        unknown = set(r) - {"base", "q", "frames"}
+        if unknown:
+            raise RequestError(f"unknown key(s) in {where}: {', '.join(sorted(unknown))}")
 
     try:
         model = pin.buildModelFromUrdf(urdf_path, pin.JointModelFreeFlyer(), ROOT_JOINT)
@@ -142,6 +148,19 @@ def main(argv):
         return 1
     data = model.createData()
 
+    answers = []
+    for k, r in enumerate(requests):
+        try:
+            answers.append(answer(model, data, r))
+        except RequestError as e:
+            raise RequestError(f"request {k}: {e}" if batch else str(e)) from None
+    json.dump(answers if batch else answers[0], sys.stdout)
+    sys.stdout.write("\n")
+    return 0
+
+
+def answer(model, data, request):
+    """Evaluates one request object into one answer object."""
     q = build_configuration(model, request.get("base", {}), request.get("q", {}))
 
     frames = request.get("frames", [])
@@ -170,9 +189,7 @@ def main(argv):
             "xyz": [float(v) for v in placement.translation],
             "rotation": [[float(v) for v in row] for row in placement.rotation],
         }
-    json.dump(out, sys.stdout)
-    sys.stdout.write("\n")
-    return 0
+    return out
 
 
 if __name__ == "__main__":
