@@ -1,6 +1,7 @@
 //! `biped`: the commands users run. `biped plan` plans a walk offline; the ROS 2 fleet
 //! (`biped launch`) and the simulated walk (`biped walk`) join as they land.
 
+mod launch;
 mod plan;
 mod plots;
 
@@ -41,6 +42,25 @@ struct RobotArgs {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Start the ROS 2 fleet (gait_planner, ik_solver, joint_bridge) as separate processes
+    /// until Ctrl-C or SIGTERM.
+    Launch {
+        /// Joint bridge backend.
+        #[arg(long, default_value = "mock", value_parser = ["mock", "sim", "serial"])]
+        backend: String,
+        /// Robot URDF. Default: the built-in robot.
+        #[arg(long, value_name = "URDF")]
+        robot: Option<PathBuf>,
+        /// ROS 2 parameter file for every node (e.g. config/gait.yaml).
+        #[arg(long, value_name = "YAML")]
+        params: Option<PathBuf>,
+        /// Namespace of the nodes.
+        #[arg(long, default_value = "/")]
+        ns: String,
+        /// Folder for the nodes' log files.
+        #[arg(long, value_name = "DIR", default_value = "out/launch")]
+        log_dir: PathBuf,
+    },
     /// Plan a walk offline; write it as CSV (one row per control tick) and pictures.
     Plan {
         /// Number of steps (swings before the closing half step).
@@ -89,6 +109,19 @@ fn load_params(args: &RobotArgs) -> anyhow::Result<GaitParams> {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Launch {
+            backend,
+            robot,
+            params,
+            ns,
+            log_dir,
+        } => launch::launch(&launch::LaunchOptions {
+            backend,
+            robot,
+            params,
+            namespace: ns,
+            log_dir,
+        }),
         Command::Plan {
             steps,
             robot,

@@ -176,6 +176,42 @@ impl GaitPlanner {
         }
     }
 
+    /// Changes the parameters between walks, after the same check as [`Self::new`]. Refused
+    /// during a walk, and for the hip height (while crouched) and the control rate, which
+    /// would make the pose or the tick times jump.
+    pub fn set_params(&mut self, params: GaitParams) -> Result<(), GaitError> {
+        if self.phase.kind != PhaseKind::Idle || self.pending.is_some() {
+            return Err(GaitError::Request(
+                "parameters can change only between walks (the planner is walking)".into(),
+            ));
+        }
+        let cfg = params.resolve(&self.model)?;
+        if cfg.control_rate_hz != self.cfg.control_rate_hz {
+            return Err(GaitError::Param {
+                key: "control_rate_hz",
+                value: cfg.control_rate_hz,
+                why: format!(
+                    "fixed at {} Hz while running; restart to change it",
+                    self.cfg.control_rate_hz
+                ),
+            });
+        }
+        if self.crouched && cfg.hip_height_m != self.cfg.hip_height_m {
+            return Err(GaitError::Param {
+                key: "hip_height_m",
+                value: cfg.hip_height_m,
+                why: format!(
+                    "cannot change from {} m while crouched",
+                    self.cfg.hip_height_m
+                ),
+            });
+        }
+        Self::unchecked(self.model.clone(), cfg.clone()).check_walk()?;
+        self.next_swing = cfg.first_foot;
+        self.cfg = cfg;
+        Ok(())
+    }
+
     /// The resolved parameters.
     pub fn config(&self) -> &GaitConfig {
         &self.cfg

@@ -189,6 +189,19 @@ impl BipedModel {
         Self::from_robot(RobotModel::from_urdf_file(path)?, role_map)
     }
 
+    /// The robot of a `robot_description_file` parameter: a URDF path, or the built-in
+    /// default robot for an empty string.
+    pub fn from_file_or_default(
+        path: &str,
+        role_map: Option<&LegRoleMap>,
+    ) -> Result<Self, ModelError> {
+        if path.is_empty() {
+            Self::from_urdf_str(crate::DEFAULT_URDF, role_map)
+        } else {
+            Self::from_urdf_file(path, role_map)
+        }
+    }
+
     /// Finds the legs of an already parsed tree.
     pub fn from_robot(
         robot: RobotModel,

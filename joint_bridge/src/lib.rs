@@ -1,1 +1,22 @@
-//! placeholder
+//! The joint bridge: joint commands in, a backend (mock, simulator, serial servo board)
+//! moved safely, joint states out.
+//!
+//! Data flow: [`JointBridge::command`] takes a command (names, positions) at any time; it
+//! refuses non-finite values and unknown joints by name, clamps to the URDF limits and feeds
+//! the watchdog. [`JointBridge::tick`] runs at the bridge's rate with the time passed in: it
+//! trips the watchdog when commands stop (hold the pose, or go limp), moves the output toward
+//! the target no faster than each joint's velocity limit, writes it to the [`Backend`] and
+//! reads the joint states back. Everything the bridge notices comes back as [`Event`]s for the
+//! node to log.
+//!
+//! Pure library: no clock, no middleware. The `joint_bridge` ROS 2 node wraps it.
+
+mod backend;
+mod bridge;
+mod limits;
+mod mock;
+
+pub use backend::{Backend, BackendError, Lifecycle, Reading};
+pub use bridge::{BridgeConfig, Event, JointBridge, TimeoutAction};
+pub use limits::JointSpec;
+pub use mock::MockBackend;

@@ -1,1 +1,16 @@
-//! placeholder
+//! The ROS 2 wire edge of the biped fleet.
+//!
+//! - [`msg`]: Rust types for our own `biped_msgs` interfaces (the ROS 2 package in this
+//!   folder: `package.xml`, `CMakeLists.txt`, `msg/*.msg`) and for every standard type the
+//!   nodes use, fields in `.msg` order so their CDR encoding is the ROS one. Each type names
+//!   its ROS type and fields through [`RosMessage`]; a test checks them field by field against
+//!   the types rosidl generates from the `.msg` files.
+//! - [`ros`]: what every node shares: `--ros-args` parsing, the DDS context (honouring
+//!   `ROS_DOMAIN_ID` and `ROS_AUTOMATIC_DISCOVERY_RANGE`), parameter files, QoS profiles.
+//!
+//! Core crates never see these types: nodes convert at the edge.
+
+pub mod msg;
+pub mod ros;
+
+pub use msg::RosMessage;

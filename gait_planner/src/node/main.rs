@@ -1,0 +1,401 @@
+//! The `gait_planner` ROS 2 node: a thin wrapper over the gait_planner library.
+//!
+//! - subscribes `cmd_vel` (geometry_msgs/msg/Twist: `linear.x` > 0 walks until stopped at
+//!   that speed, 0 stops at the next feet-together point) and `walk_command`
+//!   (biped_msgs/msg/WalkCommand);
+//! - publishes `gait/phase` (biped_msgs/msg/GaitPhase) and `gait/ankle_targets`
+//!   (biped_msgs/msg/AnkleTargets) at `control_rate_hz`, idle or walking.
+//!
+//! Parameters: those of `config/gait.yaml` plus `robot_description_file` (URDF path; empty
+//! for the built-in robot). Bad commands are refused or clamped with a warning on `/rosout`
+//! naming the field and value; the walk in progress is unaffected.
+//!
+//! The planner is stepped with tick times k / control_rate_hz, not with the measured time, so
+//! a walk published here is tick for tick the walk `biped plan` writes.
+
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+
+use anyhow::Context as _;
+use biped_msgs::RosMessage;
+use biped_msgs::msg::{AnkleTargets, GaitPhase, Header, Point, Twist, WalkCommand};
+use biped_msgs::ros::{self, Log, NodeSetup, Ticker};
+use gait_planner::{GaitParams, GaitPlanner, GaitSample, PhaseKind, WalkRequest};
+use ik_solver::BipedModel;
+use ros2_client::{Node, ParameterValue};
+
+const ROBOT_PARAM: &str = "robot_description_file";
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("gait_planner: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The gait parameters in the node's parameter map (the robot file and use_sim_time aside).
+fn gait_params(
+    params: &std::collections::BTreeMap<String, serde_norway::Value>,
+) -> anyhow::Result<GaitParams> {
+    let mut map = serde_norway::Mapping::new();
+    for (k, v) in params {
+        if k != ROBOT_PARAM && k != "use_sim_time" {
+            map.insert(serde_norway::Value::String(k.clone()), v.clone());
+        }
+    }
+    serde_norway::from_value(serde_norway::Value::Mapping(map)).context("gait_planner parameters")
+}
+
+fn declared(
+    params: &GaitParams,
+    robot_file: &str,
+) -> anyhow::Result<std::collections::BTreeMap<String, ParameterValue>> {
+    let mut out = std::collections::BTreeMap::new();
+    if let serde_norway::Value::Mapping(m) = serde_norway::to_value(params)? {
+        for (k, v) in m {
+            let name = k.as_str().unwrap_or_default().to_owned();
+            out.insert(name.clone(), ros::to_parameter_value(&name, &v)?);
+        }
+    }
+    out.insert(
+        ROBOT_PARAM.into(),
+        ParameterValue::String(robot_file.into()),
+    );
+    Ok(out)
+}
+
+/// What the node does with a command; pure, so every case is the same whoever sends it.
+struct Commands {
+    reported_turning: bool,
+}
+
+impl Commands {
+    fn cmd_vel(&mut self, planner: &mut GaitPlanner, tw: &Twist, base: &GaitParams) -> Vec<String> {
+        let mut warnings = Vec::new();
+        for (field, v) in [
+            ("linear.x", tw.linear.x),
+            ("linear.y", tw.linear.y),
+            ("linear.z", tw.linear.z),
+            ("angular.x", tw.angular.x),
+            ("angular.y", tw.angular.y),
+            ("angular.z", tw.angular.z),
+        ] {
+            if !v.is_finite() {
+                warnings.push(format!(
+                    "cmd_vel refused: {field} = {v} is not a finite number"
+                ));
+                return warnings;
+            }
+        }
+        if (tw.linear.y != 0.0 || tw.angular.z != 0.0) && !self.reported_turning {
+            self.reported_turning = true;
+            warnings.push(format!(
+                "cmd_vel: linear.y = {} and angular.z = {} ignored: side steps and turning are not supported yet (reported once)",
+                tw.linear.y, tw.angular.z
+            ));
+        }
+        let v = tw.linear.x;
+        if v < 0.0 {
+            warnings.push(format!(
+                "cmd_vel refused: linear.x = {v} m/s: walking backward is not supported"
+            ));
+            return warnings;
+        }
+        if v == 0.0 {
+            planner.request(WalkRequest::Stop);
+            return warnings;
+        }
+        if planner.phase() != PhaseKind::Idle {
+            planner.request(WalkRequest::UntilStop);
+            return warnings;
+        }
+        // One step (a swing and a shift) advances one step length.
+        let cfg = planner.config().clone();
+        let max = cfg.step_length_m;
+        let mut step = v * (cfg.step_duration_s + cfg.shift_duration_s);
+        if step > max {
+            warnings.push(format!(
+                "cmd_vel: linear.x = {v} m/s is above the top speed {:.4} m/s of the configured step; clamped",
+                max / (cfg.step_duration_s + cfg.shift_duration_s)
+            ));
+            step = max;
+        }
+        let params = GaitParams {
+            step_length_m: step,
+            ..base.clone()
+        };
+        match planner.set_params(params) {
+            Ok(()) => planner.request(WalkRequest::UntilStop),
+            Err(e) => warnings.push(format!("cmd_vel refused: linear.x = {v} m/s: {e}")),
+        }
+        warnings
+    }
+
+    fn walk_command(
+        &mut self,
+        planner: &mut GaitPlanner,
+        c: &WalkCommand,
+        base: &mut GaitParams,
+    ) -> Vec<String> {
+        let mut warnings = Vec::new();
+        if c.stop {
+            planner.request(WalkRequest::Stop);
+            return warnings;
+        }
+        for (field, v) in [
+            ("step_length", c.step_length),
+            ("step_duration", c.step_duration),
+        ] {
+            if !v.is_finite() || v < 0.0 {
+                warnings.push(format!(
+                    "walk_command refused: {field} = {v} is not a finite number >= 0"
+                ));
+                return warnings;
+            }
+        }
+        let mut params = base.clone();
+        if c.step_length > 0.0 {
+            params.step_length_m = c.step_length;
+        }
+        if c.step_duration > 0.0 {
+            params.step_duration_s = c.step_duration;
+        }
+        if params != *base || planner.phase() == PhaseKind::Idle {
+            if planner.phase() != PhaseKind::Idle {
+                warnings.push(format!(
+                    "walk_command: step_length = {} and step_duration = {} apply from the next walk; this one keeps its steps",
+                    c.step_length, c.step_duration
+                ));
+            } else if let Err(e) = planner.set_params(params.clone()) {
+                warnings.push(format!(
+                    "walk_command refused: step_length = {}, step_duration = {}: {e}",
+                    c.step_length, c.step_duration
+                ));
+                return warnings;
+            } else {
+                *base = params;
+            }
+        }
+        planner.request(if c.steps == 0 {
+            WalkRequest::UntilStop
+        } else {
+            WalkRequest::Steps(c.steps)
+        });
+        warnings
+    }
+}
+
+fn to_msgs(
+    s: &GaitSample,
+    stamp: biped_msgs::msg::Time,
+    base_frame: &str,
+) -> (GaitPhase, AnkleTargets) {
+    let header = Header {
+        stamp,
+        frame_id: base_frame.to_owned(),
+    };
+    let p = |v: &nalgebra::Vector3<f64>| Point {
+        x: v.x,
+        y: v.y,
+        z: v.z,
+    };
+    let b = &s.base_world.translation.vector;
+    (
+        GaitPhase {
+            header: header.clone(),
+            phase: s.phase.as_str().into(),
+            support: s.support.as_str().into(),
+            step_index: s.step_index,
+            progress: s.progress,
+        },
+        AnkleTargets {
+            header,
+            left_ankle: p(&s.targets[0].ankle_in_hip_m),
+            right_ankle: p(&s.targets[1].ankle_in_hip_m),
+            left_foot_yaw: s.targets[0].foot_yaw_rad,
+            right_foot_yaw: s.targets[1].foot_yaw_rad,
+            pelvis: p(b),
+        },
+    )
+}
+
+fn run() -> anyhow::Result<()> {
+    let setup = NodeSetup::from_env("gait_planner")?;
+    if !setup.own_args.is_empty() {
+        anyhow::bail!(
+            "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
+            setup.own_args
+        );
+    }
+    let robot_file = setup.str_param(ROBOT_PARAM, "")?;
+    let model = BipedModel::from_file_or_default(&robot_file, None)
+        .with_context(|| format!("{ROBOT_PARAM} `{robot_file}`"))?;
+    let mut params = gait_params(&setup.params)?;
+    let mut planner = GaitPlanner::new(model.clone(), params.clone())?;
+    let rate = planner.config().control_rate_hz;
+    let base_frame = model.robot().links()[model.robot().root()].name.clone();
+
+    let context = ros::context_from_env()?;
+    // Parameter sets from peers: checked here (a refused set returns its reason to the
+    // peer), applied by the loop between walks.
+    let walking = Arc::new(AtomicBool::new(false));
+    let shared = Arc::new(Mutex::new(params.clone()));
+    let (tx, rx) = std::sync::mpsc::channel::<GaitParams>();
+    let check = {
+        let (walking, shared, model) = (walking.clone(), shared.clone(), model.clone());
+        move |name: &str, value: &ParameterValue| -> Result<(), String> {
+            if name == ROBOT_PARAM {
+                return Err(
+                    "robot_description_file is read at start-up; restart the node to change it"
+                        .into(),
+                );
+            }
+            if name == "use_sim_time" {
+                return Ok(());
+            }
+            if walking.load(Ordering::SeqCst) {
+                return Err(format!(
+                    "{name}: gait parameters can change only between walks"
+                ));
+            }
+            let mut candidate = shared.lock().map_err(|e| e.to_string())?.clone();
+            let mut map = match serde_norway::to_value(&candidate) {
+                Ok(serde_norway::Value::Mapping(m)) => m,
+                _ => return Err("internal: parameters do not serialise".into()),
+            };
+            map.insert(
+                serde_norway::Value::String(name.into()),
+                ros::from_parameter_value(value),
+            );
+            candidate = serde_norway::from_value(serde_norway::Value::Mapping(map))
+                .map_err(|e| format!("{name}: {e}"))?;
+            // The same check a walk start does, on a scratch planner.
+            let mut scratch = GaitPlanner::new(model.clone(), GaitParams::default())
+                .map_err(|e| e.to_string())?;
+            scratch
+                .set_params(candidate.clone())
+                .map_err(|e| e.to_string())?;
+            *shared.lock().map_err(|e| e.to_string())? = candidate.clone();
+            tx.send(candidate).map_err(|e| e.to_string())
+        }
+    };
+    let mut node = ros::create_node(
+        &context,
+        &setup.name,
+        &setup.namespace,
+        &declared(&params, &robot_file)?,
+        Some(Box::new(check)),
+    )?;
+    let log = Log::new(&node, &setup.args);
+    let stop = ros::shutdown_flag()?;
+
+    let qos = ros::qos::default();
+    let topic = |node: &Node, name: &str, ty| -> anyhow::Result<ros2_client::dds::rustdds::Topic> {
+        Ok(node
+            .create_topic(&ros::topic_name(&setup.args, name)?, ty, &qos)
+            .map_err(|e| anyhow::anyhow!("topic {name}: {e:?}"))?)
+    };
+    let phase_pub = node
+        .create_publisher::<GaitPhase>(
+            &topic(&node, "gait/phase", GaitPhase::message_type_name())?,
+            None,
+        )
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let targets_pub = node
+        .create_publisher::<AnkleTargets>(
+            &topic(
+                &node,
+                "gait/ankle_targets",
+                AnkleTargets::message_type_name(),
+            )?,
+            None,
+        )
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let cmd_vel = node
+        .create_subscription::<Twist>(&topic(&node, "cmd_vel", Twist::message_type_name())?, None)
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let walk_cmd = node
+        .create_subscription::<WalkCommand>(
+            &topic(&node, "walk_command", WalkCommand::message_type_name())?,
+            None,
+        )
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+
+    let spinner = node
+        .spinner()
+        .map_err(|e| anyhow::anyhow!("spinner: {e:?}"))?;
+    let executor = smol::LocalExecutor::new();
+    executor.spawn(spinner.spin()).detach();
+    let c = planner.config();
+    log.info(
+        &node,
+        &format!(
+            "ready: robot {}, step {:.4} m, {} Hz; send biped_msgs/msg/WalkCommand on walk_command or geometry_msgs/msg/Twist on cmd_vel",
+            model.robot().name(),
+            c.step_length_m,
+            c.control_rate_hz
+        ),
+    );
+
+    let mut commands = Commands {
+        reported_turning: false,
+    };
+    let result: anyhow::Result<()> = smol::block_on(executor.run(async {
+        let mut ticker = Ticker::new(rate);
+        let mut last_phase = None;
+        while !stop.load(Ordering::SeqCst) {
+            let k = ticker.next().await;
+            while let Ok(p) = rx.try_recv() {
+                match planner.set_params(p.clone()) {
+                    Ok(()) => {
+                        params = p;
+                        log.info(&node, "parameters changed");
+                    }
+                    Err(e) => log.warn(&node, &format!("parameter change not applied: {e}")),
+                }
+            }
+            while let Ok(Some((msg, _))) = walk_cmd.take() {
+                for w in commands.walk_command(&mut planner, &msg, &mut params) {
+                    log.warn(&node, &w);
+                }
+            }
+            while let Ok(Some((msg, _))) = cmd_vel.take() {
+                for w in commands.cmd_vel(&mut planner, &msg, &params) {
+                    log.warn(&node, &w);
+                }
+            }
+            let sample = match planner.update(k as f64 / rate) {
+                Ok(s) => s,
+                Err(e) => {
+                    log.error(&node, &format!("planner: {e}"));
+                    continue;
+                }
+            };
+            walking.store(sample.phase != PhaseKind::Idle, Ordering::SeqCst);
+            if last_phase != Some((sample.phase, sample.step_index)) {
+                log.info(
+                    &node,
+                    &format!(
+                        "phase {} ({} support, step {})",
+                        sample.phase, sample.support, sample.step_index
+                    ),
+                );
+                last_phase = Some((sample.phase, sample.step_index));
+            }
+            let (phase, targets) = to_msgs(&sample, node.time_now().into(), &base_frame);
+            if let Err(e) = targets_pub.publish(targets) {
+                log.error(&node, &format!("publish gait/ankle_targets: {e:?}"));
+            }
+            if let Err(e) = phase_pub.publish(phase) {
+                log.error(&node, &format!("publish gait/phase: {e:?}"));
+            }
+        }
+        Ok(())
+    }));
+    log.info(&node, "shutting down");
+    result
+}

@@ -1,0 +1,189 @@
+//! The `ik_solver` ROS 2 node: a thin wrapper over the ik_solver library.
+//!
+//! Subscribes `gait/ankle_targets` (biped_msgs/msg/AnkleTargets); for each message solves
+//! both legs with the closed-form IK and publishes `joint_commands`
+//! (sensor_msgs/msg/JointState: the leg joints by URDF name, positions in rad, the
+//! targets' stamp). A target with NaN or infinity is refused with a warning naming the field
+//! (nothing is published for it, so the joint bridge keeps its pose); an unreachable target
+//! or a joint limit is clamped and reported (at most once a second per kind).
+//!
+//! Parameters: `robot_description_file` (URDF path; empty for the built-in robot).
+
+use std::collections::BTreeMap;
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use biped_msgs::RosMessage;
+use biped_msgs::msg::{AnkleTargets, JointState};
+use biped_msgs::ros::{self, Log, NodeSetup};
+use ik_solver::{AnkleTarget, BipedModel, Side};
+use nalgebra::Vector3;
+use ros2_client::ParameterValue;
+use smol::future::FutureExt as _;
+
+const ROBOT_PARAM: &str = "robot_description_file";
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("ik_solver: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Solves one message into a joint command; `Err` names the non-finite field.
+fn solve(
+    model: &BipedModel,
+    names: &[String],
+    dofs: &[usize],
+    msg: &AnkleTargets,
+    q: &mut [f64],
+) -> Result<(JointState, Vec<String>), String> {
+    let left = AnkleTarget {
+        ankle_in_hip_m: Vector3::new(msg.left_ankle.x, msg.left_ankle.y, msg.left_ankle.z),
+        foot_yaw_rad: msg.left_foot_yaw,
+    };
+    let right = AnkleTarget {
+        ankle_in_hip_m: Vector3::new(msg.right_ankle.x, msg.right_ankle.y, msg.right_ankle.z),
+        foot_yaw_rad: msg.right_foot_yaw,
+    };
+    let issues = model
+        .solve_legs(&left, &right, q)
+        .map_err(|e| format!("ankle targets refused: {e}"))?;
+    let js = JointState {
+        header: msg.header.clone(),
+        name: names.to_vec(),
+        position: dofs.iter().map(|&d| q[d]).collect(),
+        velocity: Vec::new(),
+        effort: Vec::new(),
+    };
+    Ok((js, issues.iter().map(|i| i.to_string()).collect()))
+}
+
+fn run() -> anyhow::Result<()> {
+    let setup = NodeSetup::from_env("ik_solver")?;
+    if !setup.own_args.is_empty() {
+        anyhow::bail!(
+            "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
+            setup.own_args
+        );
+    }
+    ros::check_known(&setup.params, &[ROBOT_PARAM])?;
+    let robot_file = setup.str_param(ROBOT_PARAM, "")?;
+    let model = BipedModel::from_file_or_default(&robot_file, None)
+        .with_context(|| format!("{ROBOT_PARAM} `{robot_file}`"))?;
+    // The leg joints, left then right, hip to foot.
+    let (names, dofs): (Vec<String>, Vec<usize>) = Side::BOTH
+        .iter()
+        .flat_map(|&s| {
+            model
+                .leg(s)
+                .present()
+                .map(|(_, j)| (j.name.clone(), j.dof))
+                .collect::<Vec<_>>()
+        })
+        .unzip();
+
+    let context = ros::context_from_env()?;
+    let declared = BTreeMap::from([(
+        ROBOT_PARAM.to_string(),
+        ParameterValue::String(robot_file.clone()),
+    )]);
+    let check = |name: &str, _: &ParameterValue| -> Result<(), String> {
+        if name == ROBOT_PARAM {
+            Err("robot_description_file is read at start-up; restart the node to change it".into())
+        } else {
+            Ok(())
+        }
+    };
+    let mut node = ros::create_node(
+        &context,
+        &setup.name,
+        &setup.namespace,
+        &declared,
+        Some(Box::new(check)),
+    )?;
+    let log = Log::new(&node, &setup.args);
+    let stop = ros::shutdown_flag()?;
+    let qos = ros::qos::default();
+    let targets_topic = node
+        .create_topic(
+            &ros::topic_name(&setup.args, "gait/ankle_targets")?,
+            AnkleTargets::message_type_name(),
+            &qos,
+        )
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let commands_topic = node
+        .create_topic(
+            &ros::topic_name(&setup.args, "joint_commands")?,
+            JointState::message_type_name(),
+            &qos,
+        )
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let sub = node
+        .create_subscription::<AnkleTargets>(&targets_topic, None)
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let publisher = node
+        .create_publisher::<JointState>(&commands_topic, None)
+        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    let spinner = node
+        .spinner()
+        .map_err(|e| anyhow::anyhow!("spinner: {e:?}"))?;
+    let executor = smol::LocalExecutor::new();
+    executor.spawn(spinner.spin()).detach();
+    log.info(
+        &node,
+        &format!(
+            "ready: robot {}, solving {} leg joints",
+            model.robot().name(),
+            names.len()
+        ),
+    );
+
+    let mut q = vec![0.0; model.robot().dof_count()];
+    let mut last_report: BTreeMap<String, Instant> = BTreeMap::new();
+    smol::block_on(executor.run(async {
+        while !stop.load(Ordering::SeqCst) {
+            let next = async { Some(sub.async_take().await) }.or(async {
+                smol::Timer::after(Duration::from_millis(100)).await;
+                None
+            });
+            let Some(received) = next.await else { continue };
+            let msg = match received {
+                Ok((m, _)) => m,
+                Err(e) => {
+                    log.warn(
+                        &node,
+                        &format!("gait/ankle_targets: unreadable message dropped: {e:?}"),
+                    );
+                    continue;
+                }
+            };
+            match solve(&model, &names, &dofs, &msg, &mut q) {
+                Ok((js, issues)) => {
+                    for issue in issues {
+                        // One report per kind of issue a second, not one per tick.
+                        let key: String = issue.split(':').next().unwrap_or_default().to_owned();
+                        let due = last_report
+                            .get(&key)
+                            .is_none_or(|t| t.elapsed() > Duration::from_secs(1));
+                        if due {
+                            log.warn(&node, &issue);
+                            last_report.insert(key, Instant::now());
+                        }
+                    }
+                    if let Err(e) = publisher.publish(js) {
+                        log.error(&node, &format!("publish joint_commands: {e:?}"));
+                    }
+                }
+                Err(why) => log.warn(&node, &why),
+            }
+        }
+    }));
+    log.info(&node, "shutting down");
+    Ok(())
+}

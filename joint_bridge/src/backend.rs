@@ -1,0 +1,87 @@
+//! The one contract every backend (mock, simulator, serial boards) implements.
+
+use crate::limits::JointSpec;
+
+/// Where a backend is in its lifecycle (as ros2_control's hardware components).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lifecycle {
+    /// Created; nothing opened.
+    Unconfigured,
+    /// Configured: the device is open and may be read, but must not move (torque off).
+    Inactive,
+    /// Active: torque on, commands are written.
+    Active,
+    /// A fault stopped it; torque is off.
+    Error,
+}
+
+/// What a backend reports back.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Reading {
+    /// Joint positions (rad), in the configured joint order.
+    pub positions_rad: Vec<f64>,
+    /// Joint velocities (rad/s), when the backend knows them.
+    pub velocities_rad_s: Option<Vec<f64>>,
+    /// True when the positions are measured; false when they are the commanded ones.
+    pub measured: bool,
+}
+
+/// A backend failure, naming the device or joint.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BackendError {
+    /// The device could not be opened or found.
+    #[error("{backend}: cannot open: {why}")]
+    Open {
+        /// The backend.
+        backend: String,
+        /// Why.
+        why: String,
+    },
+    /// A joint the backend cannot drive.
+    #[error("{backend}: joint `{joint}`: {why}")]
+    Joint {
+        /// The backend.
+        backend: String,
+        /// The joint.
+        joint: String,
+        /// Why.
+        why: String,
+    },
+    /// An I/O or protocol failure while running.
+    #[error("{backend}: {why}")]
+    Io {
+        /// The backend.
+        backend: String,
+        /// Why.
+        why: String,
+    },
+    /// A call in the wrong lifecycle state.
+    #[error("{backend}: {call} is not allowed while {state:?}")]
+    State {
+        /// The backend.
+        backend: String,
+        /// The call.
+        call: &'static str,
+        /// The state it was in.
+        state: Lifecycle,
+    },
+}
+
+/// A joint-level hardware or simulator interface with a lifecycle:
+/// `configure` (open, may read, must not move) → `activate` (torque on) → `write`/`read` →
+/// `deactivate` (torque off; also on shutdown, watchdog and errors).
+pub trait Backend: Send {
+    /// A short name for logs ("mock", "sim", "dynamixel2", ...).
+    fn name(&self) -> &str;
+    /// Opens the device for these joints. Returns the measured positions (rad) where the
+    /// backend can read them.
+    fn configure(&mut self, joints: &[JointSpec]) -> Result<Option<Vec<f64>>, BackendError>;
+    /// Torque on: from now on the joints hold the positions written.
+    fn activate(&mut self) -> Result<(), BackendError>;
+    /// Sends goal positions (rad), one per configured joint, at time `t_s`.
+    fn write(&mut self, t_s: f64, positions_rad: &[f64]) -> Result<(), BackendError>;
+    /// Reads the joint states at time `t_s`.
+    fn read(&mut self, t_s: f64) -> Result<Reading, BackendError>;
+    /// Torque off. Must be safe to call in any state and more than once.
+    fn deactivate(&mut self) -> Result<(), BackendError>;
+}

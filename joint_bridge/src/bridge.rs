@@ -1,0 +1,331 @@
+//! The bridge core: commands in, safe positions to the backend, states out.
+
+use std::collections::{HashMap, HashSet};
+use std::fmt;
+
+use crate::backend::{Backend, BackendError, Lifecycle, Reading};
+use crate::limits::JointSpec;
+
+/// What to do when commands stop coming.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TimeoutAction {
+    /// Keep holding the last commanded pose (torque on).
+    Hold,
+    /// Torque off: the joints go limp.
+    Limp,
+}
+
+impl std::str::FromStr for TimeoutAction {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "hold" => Ok(Self::Hold),
+            "limp" => Ok(Self::Limp),
+            other => Err(format!("`{other}` is not a watchdog action (hold or limp)")),
+        }
+    }
+}
+
+/// Bridge settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BridgeConfig {
+    /// Commands older than this trip the watchdog (s).
+    pub watchdog_timeout_s: f64,
+    /// What the watchdog does.
+    pub on_timeout: TimeoutAction,
+}
+
+impl Default for BridgeConfig {
+    fn default() -> Self {
+        Self {
+            watchdog_timeout_s: 0.25,
+            on_timeout: TimeoutAction::Hold,
+        }
+    }
+}
+
+/// Something the bridge noticed, for the node to log.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// A command named a joint the bridge does not drive (reported once per name).
+    UnknownJoint {
+        /// The name.
+        joint: String,
+    },
+    /// A command's value was NaN or infinite; the joint keeps its previous target.
+    NonFinite {
+        /// The joint.
+        joint: String,
+        /// The value.
+        value: f64,
+    },
+    /// A command's value was beyond the joint's URDF limits; clamped.
+    Clamped {
+        /// The joint.
+        joint: String,
+        /// The value asked.
+        requested_rad: f64,
+        /// The value used.
+        clamped_rad: f64,
+    },
+    /// A command whose name and position lists differ in length; ignored.
+    Malformed {
+        /// Names.
+        names: usize,
+        /// Positions.
+        positions: usize,
+    },
+    /// Commands stopped for longer than the timeout.
+    WatchdogTripped {
+        /// Seconds since the last command.
+        silence_s: f64,
+        /// What was done.
+        action: TimeoutAction,
+    },
+    /// Commands came back after the watchdog tripped.
+    Resumed,
+    /// The backend failed; it was deactivated (torque off).
+    BackendFailed(BackendError),
+}
+
+impl fmt::Display for Event {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Event::UnknownJoint { joint } => write!(
+                f,
+                "command for unknown joint `{joint}` ignored (reported once)"
+            ),
+            Event::NonFinite { joint, value } => write!(
+                f,
+                "command for joint `{joint}` is {value}, not a finite number: refused, holding its previous target"
+            ),
+            Event::Clamped {
+                joint,
+                requested_rad,
+                clamped_rad,
+            } => {
+                write!(
+                    f,
+                    "command for joint `{joint}` = {requested_rad:.4} rad is beyond its URDF limit: clamped to {clamped_rad:.4} rad"
+                )
+            }
+            Event::Malformed { names, positions } => write!(
+                f,
+                "command with {names} names and {positions} positions ignored"
+            ),
+            Event::WatchdogTripped { silence_s, action } => match action {
+                TimeoutAction::Hold => write!(
+                    f,
+                    "watchdog: no joint command for {silence_s:.3} s, holding the last pose"
+                ),
+                TimeoutAction::Limp => write!(
+                    f,
+                    "watchdog: no joint command for {silence_s:.3} s, torque off (limp)"
+                ),
+            },
+            Event::Resumed => write!(f, "joint commands resumed"),
+            Event::BackendFailed(e) => write!(f, "backend failed, torque off: {e}"),
+        }
+    }
+}
+
+/// The bridge: a backend with limits, velocity limiting and a watchdog around it.
+///
+/// ```
+/// use joint_bridge::{BridgeConfig, JointBridge, JointSpec, MockBackend};
+/// let joints = vec![JointSpec { name: "knee".into(), lower_rad: 0.0, upper_rad: 2.0, velocity_rad_s: 1.0 }];
+/// let mut bridge = JointBridge::new(MockBackend::default(), joints, BridgeConfig::default());
+/// bridge.start().unwrap();
+/// bridge.command(0.0, &["knee".to_string()], &[0.5]);
+/// bridge.tick(0.0);
+/// let (state, _) = bridge.tick(0.1);
+/// // 1 rad/s for 0.1 s: the knee is on its way, 0.1 rad from where it was.
+/// assert!((state.unwrap().positions_rad[0] - 0.1).abs() < 1e-12);
+/// ```
+#[derive(Debug)]
+pub struct JointBridge<B: Backend> {
+    backend: B,
+    joints: Vec<JointSpec>,
+    index: HashMap<String, usize>,
+    config: BridgeConfig,
+    /// Where the joints should go (clamped, finite).
+    target: Vec<f64>,
+    /// What was last written (the target approached at the velocity limits).
+    output: Vec<f64>,
+    state: Lifecycle,
+    last_command_s: Option<f64>,
+    last_tick_s: Option<f64>,
+    tripped: bool,
+    reported_unknown: HashSet<String>,
+}
+
+impl<B: Backend> JointBridge<B> {
+    /// A bridge for these joints (typically [`JointSpec::from_robot`]).
+    pub fn new(backend: B, joints: Vec<JointSpec>, config: BridgeConfig) -> Self {
+        let index = joints
+            .iter()
+            .enumerate()
+            .map(|(i, j)| (j.name.clone(), i))
+            .collect();
+        let zeros: Vec<f64> = joints.iter().map(|j| j.clamp(0.0)).collect();
+        Self {
+            backend,
+            index,
+            config,
+            target: zeros.clone(),
+            output: zeros,
+            joints,
+            state: Lifecycle::Unconfigured,
+            last_command_s: None,
+            last_tick_s: None,
+            tripped: false,
+            reported_unknown: HashSet::new(),
+        }
+    }
+
+    /// Configures and activates the backend. The output starts at the measured pose where
+    /// the backend can measure it, so the first command is approached at the velocity limits.
+    pub fn start(&mut self) -> Result<(), BackendError> {
+        if let Some(measured) = self.backend.configure(&self.joints)? {
+            if measured.len() == self.joints.len() && measured.iter().all(|v| v.is_finite()) {
+                self.output = measured.clone();
+                self.target = measured;
+            }
+        }
+        self.state = Lifecycle::Inactive;
+        self.backend.activate()?;
+        self.state = Lifecycle::Active;
+        Ok(())
+    }
+
+    /// Torque off (on shutdown, signals, errors).
+    pub fn stop(&mut self) -> Result<(), BackendError> {
+        let r = self.backend.deactivate();
+        if self.state != Lifecycle::Unconfigured {
+            self.state = Lifecycle::Inactive;
+        }
+        r
+    }
+
+    /// The driven joints, in order.
+    pub fn joints(&self) -> &[JointSpec] {
+        &self.joints
+    }
+    /// The lifecycle state.
+    pub fn state(&self) -> Lifecycle {
+        self.state
+    }
+    /// True while the watchdog holds or has let go.
+    pub fn watchdog_tripped(&self) -> bool {
+        self.tripped
+    }
+    /// The backend.
+    pub fn backend(&self) -> &B {
+        &self.backend
+    }
+
+    /// Takes a command received at `t_s`: joint names and positions (rad). Joints not named
+    /// keep their targets.
+    pub fn command(&mut self, t_s: f64, names: &[String], positions_rad: &[f64]) -> Vec<Event> {
+        let mut events = Vec::new();
+        if names.len() != positions_rad.len() {
+            events.push(Event::Malformed {
+                names: names.len(),
+                positions: positions_rad.len(),
+            });
+            return events;
+        }
+        let mut any = false;
+        for (name, &value) in names.iter().zip(positions_rad) {
+            let Some(&i) = self.index.get(name) else {
+                if self.reported_unknown.insert(name.clone()) {
+                    events.push(Event::UnknownJoint {
+                        joint: name.clone(),
+                    });
+                }
+                continue;
+            };
+            if !value.is_finite() {
+                events.push(Event::NonFinite {
+                    joint: name.clone(),
+                    value,
+                });
+                continue;
+            }
+            let clamped = self.joints[i].clamp(value);
+            if clamped != value {
+                events.push(Event::Clamped {
+                    joint: name.clone(),
+                    requested_rad: value,
+                    clamped_rad: clamped,
+                });
+            }
+            self.target[i] = clamped;
+            any = true;
+        }
+        if any {
+            self.last_command_s = Some(t_s);
+            if self.tripped {
+                self.tripped = false;
+                if self.state == Lifecycle::Inactive {
+                    // Back from limp: torque on again; the output starts where it was left.
+                    if let Err(e) = self.backend.activate() {
+                        events.push(Event::BackendFailed(e));
+                        return events;
+                    }
+                    self.state = Lifecycle::Active;
+                }
+                events.push(Event::Resumed);
+            }
+        }
+        events
+    }
+
+    /// One control period at `t_s`: watchdog, velocity-limited write, read back.
+    pub fn tick(&mut self, t_s: f64) -> (Result<Reading, BackendError>, Vec<Event>) {
+        let mut events = Vec::new();
+        let dt = self.last_tick_s.map_or(0.0, |l| (t_s - l).max(0.0));
+        self.last_tick_s = Some(t_s);
+        if self.state == Lifecycle::Active && !self.tripped {
+            if let Some(last) = self.last_command_s {
+                let silence = t_s - last;
+                if silence > self.config.watchdog_timeout_s {
+                    self.tripped = true;
+                    // Hold where the joints are now, not where they were heading.
+                    self.target.copy_from_slice(&self.output);
+                    events.push(Event::WatchdogTripped {
+                        silence_s: silence,
+                        action: self.config.on_timeout,
+                    });
+                    if self.config.on_timeout == TimeoutAction::Limp {
+                        if let Err(e) = self.backend.deactivate() {
+                            events.push(Event::BackendFailed(e));
+                        }
+                        self.state = Lifecycle::Inactive;
+                    }
+                }
+            }
+        }
+        if self.state == Lifecycle::Active {
+            for ((out, &target), spec) in self.output.iter_mut().zip(&self.target).zip(&self.joints)
+            {
+                let step = spec.velocity_rad_s * dt;
+                *out += (target - *out).clamp(-step, step);
+            }
+            if let Err(e) = self.backend.write(t_s, &self.output) {
+                let _ = self.backend.deactivate();
+                self.state = Lifecycle::Error;
+                events.push(Event::BackendFailed(e.clone()));
+                return (Err(e), events);
+            }
+        }
+        (self.backend.read(t_s), events)
+    }
+}
+
+impl<B: Backend> Drop for JointBridge<B> {
+    fn drop(&mut self) {
+        // Torque off whatever happened.
+        let _ = self.backend.deactivate();
+    }
+}

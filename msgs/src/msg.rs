@@ -1,0 +1,352 @@
+//! Message types, in `.msg` field order.
+
+use serde::{Deserialize, Serialize};
+
+/// A ROS message type: its package, name and fields (name, type as rosidl spells it in
+/// `get_fields_and_field_types()`), in `.msg` order.
+pub trait RosMessage: ros2_client::Message + Clone + PartialEq + std::fmt::Debug + Default {
+    /// Package, e.g. `sensor_msgs`.
+    const PACKAGE: &'static str;
+    /// Type name, e.g. `JointState`.
+    const NAME: &'static str;
+    /// Fields in order: (name, rosidl type).
+    const FIELDS: &'static [(&'static str, &'static str)];
+
+    /// `package/msg/Name`, as ROS tools print it.
+    fn type_name() -> String {
+        format!("{}/msg/{}", Self::PACKAGE, Self::NAME)
+    }
+    /// The type name for ros2-client.
+    fn message_type_name() -> ros2_client::MessageTypeName {
+        ros2_client::MessageTypeName::new(Self::PACKAGE, Self::NAME)
+    }
+}
+
+macro_rules! ros_message {
+    ($ty:ident, $pkg:literal, [$(($field:literal, $fty:literal)),* $(,)?]) => {
+        impl ros2_client::Message for $ty {}
+        impl RosMessage for $ty {
+            const PACKAGE: &'static str = $pkg;
+            const NAME: &'static str = stringify!($ty);
+            const FIELDS: &'static [(&'static str, &'static str)] = &[$(($field, $fty)),*];
+        }
+    };
+}
+
+/// builtin_interfaces/msg/Time.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct Time {
+    /// Seconds.
+    pub sec: i32,
+    /// Nanoseconds within the second.
+    pub nanosec: u32,
+}
+ros_message!(
+    Time,
+    "builtin_interfaces",
+    [("sec", "int32"), ("nanosec", "uint32")]
+);
+
+impl Time {
+    /// From nanoseconds since the clock's epoch (saturating at the i32 seconds range).
+    pub fn from_nanos(nanos: i64) -> Self {
+        let sec = nanos.div_euclid(1_000_000_000);
+        let nanosec = nanos.rem_euclid(1_000_000_000) as u32;
+        Self {
+            sec: sec.clamp(i32::MIN as i64, i32::MAX as i64) as i32,
+            nanosec,
+        }
+    }
+    /// Nanoseconds since the clock's epoch.
+    pub fn to_nanos(self) -> i64 {
+        self.sec as i64 * 1_000_000_000 + self.nanosec as i64
+    }
+    /// Seconds as a float.
+    pub fn as_secs_f64(self) -> f64 {
+        self.sec as f64 + self.nanosec as f64 * 1e-9
+    }
+}
+
+impl From<ros2_client::ROSTime> for Time {
+    fn from(t: ros2_client::ROSTime) -> Self {
+        Self::from_nanos(t.to_nanos())
+    }
+}
+
+/// std_msgs/msg/Header.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Header {
+    /// Time of the data.
+    pub stamp: Time,
+    /// Frame the data is in.
+    pub frame_id: String,
+}
+ros_message!(
+    Header,
+    "std_msgs",
+    [("stamp", "builtin_interfaces/Time"), ("frame_id", "string")]
+);
+
+/// geometry_msgs/msg/Vector3.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Vector3 {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+}
+ros_message!(
+    Vector3,
+    "geometry_msgs",
+    [("x", "double"), ("y", "double"), ("z", "double")]
+);
+
+/// geometry_msgs/msg/Point.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Point {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+}
+ros_message!(
+    Point,
+    "geometry_msgs",
+    [("x", "double"), ("y", "double"), ("z", "double")]
+);
+
+/// geometry_msgs/msg/Quaternion.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Quaternion {
+    /// x.
+    pub x: f64,
+    /// y.
+    pub y: f64,
+    /// z.
+    pub z: f64,
+    /// w.
+    pub w: f64,
+}
+ros_message!(
+    Quaternion,
+    "geometry_msgs",
+    [
+        ("x", "double"),
+        ("y", "double"),
+        ("z", "double"),
+        ("w", "double")
+    ]
+);
+
+impl Default for Quaternion {
+    /// The identity, as the ROS default (w = 1).
+    fn default() -> Self {
+        Self {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            w: 1.0,
+        }
+    }
+}
+
+/// geometry_msgs/msg/Pose.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    /// Position.
+    pub position: Point,
+    /// Orientation.
+    pub orientation: Quaternion,
+}
+ros_message!(
+    Pose,
+    "geometry_msgs",
+    [
+        ("position", "geometry_msgs/Point"),
+        ("orientation", "geometry_msgs/Quaternion")
+    ]
+);
+
+/// geometry_msgs/msg/PoseStamped.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseStamped {
+    /// Stamp and frame.
+    pub header: Header,
+    /// The pose.
+    pub pose: Pose,
+}
+ros_message!(
+    PoseStamped,
+    "geometry_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("pose", "geometry_msgs/Pose")
+    ]
+);
+
+/// geometry_msgs/msg/PointStamped.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PointStamped {
+    /// Stamp and frame.
+    pub header: Header,
+    /// The point.
+    pub point: Point,
+}
+ros_message!(
+    PointStamped,
+    "geometry_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("point", "geometry_msgs/Point")
+    ]
+);
+
+/// geometry_msgs/msg/Twist.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Twist {
+    /// Linear velocity (m/s).
+    pub linear: Vector3,
+    /// Angular velocity (rad/s).
+    pub angular: Vector3,
+}
+ros_message!(
+    Twist,
+    "geometry_msgs",
+    [
+        ("linear", "geometry_msgs/Vector3"),
+        ("angular", "geometry_msgs/Vector3")
+    ]
+);
+
+/// sensor_msgs/msg/JointState.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct JointState {
+    /// Stamp.
+    pub header: Header,
+    /// Joint names.
+    pub name: Vec<String>,
+    /// Positions (rad or m).
+    pub position: Vec<f64>,
+    /// Velocities (rad/s or m/s); empty when not known.
+    pub velocity: Vec<f64>,
+    /// Efforts (N·m or N); empty when not known.
+    pub effort: Vec<f64>,
+}
+ros_message!(
+    JointState,
+    "sensor_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("name", "sequence<string>"),
+        ("position", "sequence<double>"),
+        ("velocity", "sequence<double>"),
+        ("effort", "sequence<double>"),
+    ]
+);
+
+/// rosgraph_msgs/msg/Clock.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Clock {
+    /// The simulated time.
+    pub clock: Time,
+}
+ros_message!(
+    Clock,
+    "rosgraph_msgs",
+    [("clock", "builtin_interfaces/Time")]
+);
+
+/// std_msgs/msg/String.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct StringMsg {
+    /// The text.
+    pub data: String,
+}
+impl ros2_client::Message for StringMsg {}
+impl RosMessage for StringMsg {
+    const PACKAGE: &'static str = "std_msgs";
+    const NAME: &'static str = "String";
+    const FIELDS: &'static [(&'static str, &'static str)] = &[("data", "string")];
+}
+
+/// biped_msgs/msg/GaitPhase: where the walk is (msg/GaitPhase.msg).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GaitPhase {
+    /// Stamp of the control tick.
+    pub header: Header,
+    /// idle, crouch, shift, half_step, step, final_half_step, center or rise.
+    pub phase: String,
+    /// Which feet carry the robot: double, left or right.
+    pub support: String,
+    /// Number of the swing in progress or last finished (1 = the first half step).
+    pub step_index: u32,
+    /// Progress through the phase, 0 to 1.
+    pub progress: f64,
+}
+ros_message!(
+    GaitPhase,
+    "biped_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("phase", "string"),
+        ("support", "string"),
+        ("step_index", "uint32"),
+        ("progress", "double")
+    ]
+);
+
+/// biped_msgs/msg/AnkleTargets: one control tick of the ankle trajectory (msg/AnkleTargets.msg).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct AnkleTargets {
+    /// Stamp of the control tick; frame: the robot's base link.
+    pub header: Header,
+    /// Left ankle-pitch axis relative to the left hip point, base-link axes (m).
+    pub left_ankle: Point,
+    /// Right ankle-pitch axis relative to the right hip point, base-link axes (m).
+    pub right_ankle: Point,
+    /// Left foot yaw relative to the base (rad).
+    pub left_foot_yaw: f64,
+    /// Right foot yaw relative to the base (rad).
+    pub right_foot_yaw: f64,
+    /// Pelvis (base link) position in the walk's world frame (m).
+    pub pelvis: Point,
+}
+ros_message!(
+    AnkleTargets,
+    "biped_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("left_ankle", "geometry_msgs/Point"),
+        ("right_ankle", "geometry_msgs/Point"),
+        ("left_foot_yaw", "double"),
+        ("right_foot_yaw", "double"),
+        ("pelvis", "geometry_msgs/Point"),
+    ]
+);
+
+/// biped_msgs/msg/WalkCommand: start or stop a walk (msg/WalkCommand.msg).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct WalkCommand {
+    /// Steps to walk; 0 walks until stopped.
+    pub steps: u32,
+    /// Step length (m); 0 keeps the configured one.
+    pub step_length: f64,
+    /// Step duration (s); 0 keeps the configured one.
+    pub step_duration: f64,
+    /// Stop at the next point where the feet can come together (other fields ignored).
+    pub stop: bool,
+}
+ros_message!(
+    WalkCommand,
+    "biped_msgs",
+    [
+        ("steps", "uint32"),
+        ("step_length", "double"),
+        ("step_duration", "double"),
+        ("stop", "boolean")
+    ]
+);
