@@ -399,19 +399,26 @@ pub fn create_node(
         })
 }
 
-/// A topic name after the node's remaps. Relative names (no leading `/`) are resolved in the
-/// node's namespace by ros2-client.
-pub fn topic_name(args: &RosArgs, name: &str) -> Result<Name, RosError> {
+/// A topic name after the node's remaps, resolved in its namespace: `cmd_vel` in `/` is
+/// `/cmd_vel`, in `/robot1` it is `/robot1/cmd_vel`; absolute names stay as they are.
+pub fn topic_name(args: &RosArgs, namespace: &str, name: &str) -> Result<Name, RosError> {
+    let ns = namespace.trim_end_matches('/');
+    let resolve = |n: &str| {
+        if n.starts_with('/') {
+            n.to_owned()
+        } else {
+            format!("{ns}/{n}")
+        }
+    };
+    let full = resolve(name);
     let mapped = args
         .remaps
         .iter()
         .rev()
-        .find(|(from, _)| {
-            from == name || from.trim_start_matches('/') == name.trim_start_matches('/')
-        })
-        .map(|(_, to)| to.as_str())
-        .unwrap_or(name);
-    Name::parse(mapped).map_err(|e| RosError::Args(format!("topic name `{mapped}`: {e:?}")))
+        .find(|(from, _)| resolve(from) == full)
+        .map(|(_, to)| resolve(to))
+        .unwrap_or(full);
+    Name::parse(&mapped).map_err(|e| RosError::Args(format!("topic name `{mapped}`: {e:?}")))
 }
 
 /// Logging to the console (stderr) and `/rosout` at once.

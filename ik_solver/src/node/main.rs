@@ -112,14 +112,14 @@ fn run() -> anyhow::Result<()> {
     let qos = ros::qos::default();
     let targets_topic = node
         .create_topic(
-            &ros::topic_name(&setup.args, "gait/ankle_targets")?,
+            &ros::topic_name(&setup.args, &setup.namespace, "gait/ankle_targets")?,
             AnkleTargets::message_type_name(),
             &qos,
         )
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     let commands_topic = node
         .create_topic(
-            &ros::topic_name(&setup.args, "joint_commands")?,
+            &ros::topic_name(&setup.args, &setup.namespace, "joint_commands")?,
             JointState::message_type_name(),
             &qos,
         )

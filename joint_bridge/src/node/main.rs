@@ -125,14 +125,14 @@ fn run() -> anyhow::Result<()> {
     let qos = ros::qos::default();
     let commands_topic = node
         .create_topic(
-            &ros::topic_name(&setup.args, "joint_commands")?,
+            &ros::topic_name(&setup.args, &setup.namespace, "joint_commands")?,
             JointState::message_type_name(),
             &qos,
         )
         .map_err(|e| anyhow::anyhow!("{e:?}"))?;
     let states_topic = node
         .create_topic(
-            &ros::topic_name(&setup.args, "joint_states")?,
+            &ros::topic_name(&setup.args, &setup.namespace, "joint_states")?,
             JointState::message_type_name(),
             &qos,
         )

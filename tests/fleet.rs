@@ -1,0 +1,288 @@
+//! The fleet against a real ROS 2 Jazzy peer: rclpy with Fast DDS from PyPI, using the
+//! `biped_msgs` types built from `msgs/` (scripts/setup-python-env). Each test runs the
+//! peer and the nodes in a private network namespace with only loopback, on its own
+//! ROS_DOMAIN_ID, with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST: nothing leaves the machine.
+//! The Python peer acts and records (tests/python/fleet_peer.py); the assertions are here.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
+use ik_solver::{BipedModel, Side};
+use serde_json::Value;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn python() -> PathBuf {
+    let p = std::env::var_os("BIPED_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join(".venv/bin/biped-python"));
+    assert!(
+        p.exists(),
+        "no ROS 2 Python peer at {}: run scripts/setup-python-env (scripts/test does)",
+        p.display()
+    );
+    p
+}
+
+fn bin_dir() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_BIN_EXE_biped"))
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    for node in ["gait_planner", "ik_solver", "joint_bridge"] {
+        assert!(
+            dir.join(node).is_file(),
+            "node binary {node} not built in {}: run cargo build --workspace (scripts/test does)",
+            dir.display()
+        );
+    }
+    dir
+}
+
+/// Runs a peer scenario in a new network namespace and returns what it recorded.
+fn peer(scenario: &str, domain_id: u32) -> Value {
+    let script = root().join("tests/python/fleet_peer.py");
+    let inner = format!(
+        "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$1\" {scenario} \"$2\""
+    );
+    let out = Command::new("unshare")
+        .args(["-n", "sh", "-c", &inner])
+        .arg(python())
+        .arg(&script)
+        .arg(bin_dir())
+        .env("ROS_DOMAIN_ID", domain_id.to_string())
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .env(
+            "BIPED_TEST_LOG_DIR",
+            std::env::temp_dir().join(format!("biped-launch-{domain_id}-{}", std::process::id())),
+        )
+        .output()
+        .expect("unshare runs (root needed for a private network namespace)");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "peer scenario {scenario} failed: {stderr}"
+    );
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("peer output is not JSON ({e}): {stderr}"))
+}
+
+fn rosout_has(v: &Value, node: &str, needles: &[&str]) -> bool {
+    v["rosout"].as_array().unwrap().iter().any(|m| {
+        let msg = m["msg"].as_str().unwrap_or_default();
+        m["name"].as_str().unwrap_or_default().ends_with(node)
+            && needles.iter().all(|n| msg.contains(n))
+    })
+}
+
+#[test]
+fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
+    let v = peer("walk", 61);
+    assert_eq!(v["nodes_seen"], true, "nodes: {}", v["node_names"]);
+    assert_eq!(v["matched"], true);
+
+    // The joint commands of the walk, from the first crouch tick to the end of the walk, by
+    // the stamps /gait/phase and /joint_commands share.
+    let phases = v["phases"].as_array().unwrap();
+    let walk: Vec<(i64, &str)> = phases
+        .iter()
+        .map(|p| (p["stamp"].as_i64().unwrap(), p["phase"].as_str().unwrap()))
+        .skip_while(|(_, ph)| *ph == "idle")
+        .take_while(|(_, ph)| *ph != "idle")
+        .collect();
+    let stamps: std::collections::HashSet<i64> = walk.iter().map(|(s, _)| *s).collect();
+    let commands: Vec<&Value> = v["commands"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| stamps.contains(&c["stamp"].as_i64().unwrap()))
+        .collect();
+
+    // The same walk planned offline, as `biped plan` does.
+    let model = BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None).unwrap();
+    let plan = GaitPlanner::new(model.clone(), GaitParams::default())
+        .unwrap()
+        .plan(WalkRequest::Steps(2))
+        .unwrap();
+    assert_eq!(walk.len(), plan.len(), "phase ticks received vs planned");
+    assert_eq!(
+        commands.len(),
+        plan.len(),
+        "joint commands received for the walk's ticks (none lost)"
+    );
+    let legs: Vec<(String, usize)> = Side::BOTH
+        .iter()
+        .flat_map(|&s| {
+            model
+                .leg(s)
+                .present()
+                .map(|(_, j)| (j.name.clone(), j.dof))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    for (k, (cmd, row)) in commands.iter().zip(&plan).enumerate() {
+        assert_eq!(walk[k].1, row.phase.as_str(), "tick {k}: phase");
+        let names: Vec<&str> = cmd["name"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n.as_str().unwrap())
+            .collect();
+        assert_eq!(
+            names,
+            legs.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>()
+        );
+        for (i, (name, dof)) in legs.iter().enumerate() {
+            let got = cmd["position"][i].as_f64().unwrap();
+            let want = row.joints_rad[*dof];
+            assert!(
+                (got - want).abs() < 1e-6,
+                "tick {k} ({}), joint {name}: received {got}, planned {want}",
+                row.phase
+            );
+        }
+    }
+
+    // The bad commands were refused with warnings naming field and value; the walk above
+    // went on unchanged.
+    assert!(
+        rosout_has(&v, "gait_planner", &["linear.x = NaN"]),
+        "no warning for NaN cmd_vel"
+    );
+    assert!(rosout_has(
+        &v,
+        "gait_planner",
+        &["linear.x = -0.1", "backward"]
+    ));
+    assert!(rosout_has(&v, "gait_planner", &["step_length = -1"]));
+    assert!(rosout_has(&v, "gait_planner", &["step_duration = inf"]));
+
+    // Parameters: read, refused while walking, set between walks, refused out of bounds.
+    assert_eq!(v["param_before"]["double"], 1.0);
+    assert_eq!(
+        v["set_during_walk"]["successful"], false,
+        "{}",
+        v["set_during_walk"]
+    );
+    assert_eq!(
+        v["set_after_walk"]["successful"], true,
+        "{}",
+        v["set_after_walk"]
+    );
+    assert_eq!(v["param_after"]["double"], 0.02);
+    assert_eq!(v["set_invalid"]["successful"], false);
+    assert!(
+        v["set_invalid"]["reason"]
+            .as_str()
+            .unwrap()
+            .contains("control_rate_hz"),
+        "{}",
+        v["set_invalid"]
+    );
+
+    // The joint bridge published every joint, at rest at the end of the walk (mock backend:
+    // the commanded pose).
+    let last = &v["states_last"];
+    assert_eq!(last["name"].as_array().unwrap().len(), 20);
+    let end = plan.last().unwrap();
+    for (name, dof) in &legs {
+        let i = last["name"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .position(|n| n == name.as_str())
+            .unwrap();
+        assert!(
+            (last["position"][i].as_f64().unwrap() - end.joints_rad[*dof]).abs() < 1e-6,
+            "joint_states {name}"
+        );
+    }
+    for node in ["gait_planner", "ik_solver", "joint_bridge"] {
+        assert_eq!(
+            v["exits"][node]["returncode"], 0,
+            "{node}: {}",
+            v["exits"][node]["stderr_tail"]
+        );
+    }
+}
+
+#[test]
+fn killing_ik_solver_mid_walk_makes_the_bridge_hold_the_pose() {
+    let v = peer("watchdog", 62);
+    assert_eq!(v["nodes_seen"], true);
+    let kill_t = v["kill_t"].as_f64().unwrap();
+    let states = v["states"].as_array().unwrap();
+    let pos = |s: &Value| -> Vec<f64> {
+        s["position"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let t = |s: &Value| s["t"].as_f64().unwrap();
+    // Moving before the kill (mid-walk).
+    let before: Vec<&Value> = states
+        .iter()
+        .filter(|s| t(s) > kill_t - 0.5 && t(s) < kill_t)
+        .collect();
+    assert!(before.len() > 10);
+    assert_ne!(
+        pos(before[0]),
+        pos(before[before.len() - 1]),
+        "the joints were moving before the kill"
+    );
+    // Still after: from the watchdog's time (0.2 s) plus the in-flight commands, nothing moves.
+    let after: Vec<&Value> = states
+        .iter()
+        .filter(|s| t(s) > kill_t + 0.2 + 0.15)
+        .collect();
+    assert!(after.len() > 50, "joint_states keep coming while holding");
+    for s in &after {
+        assert_eq!(
+            pos(s),
+            pos(after[0]),
+            "joint moved at t = {} after the watchdog held",
+            t(s)
+        );
+    }
+    assert!(rosout_has(
+        &v,
+        "joint_bridge",
+        &["watchdog", "holding the last pose"]
+    ));
+    assert_eq!(v["exits"]["joint_bridge"]["returncode"], 0);
+}
+
+#[test]
+fn biped_launch_starts_the_fleet_and_leaves_no_process_behind() {
+    let v = peer("launch", 63);
+    assert_eq!(v["nodes_seen"], true, "{}", v["launcher_stderr"]);
+    assert_eq!(v["launcher_returncode"], 0, "{}", v["launcher_stderr"]);
+    assert_eq!(
+        v["pids"].as_array().unwrap().len(),
+        3,
+        "{}",
+        v["launcher_stdout"]
+    );
+    assert_eq!(
+        v["alive_after"].as_array().unwrap().len(),
+        0,
+        "nodes left after Ctrl-C: {}",
+        v["alive_after"]
+    );
+    assert!(
+        v["launcher_stdout"].as_str().unwrap().contains("log: "),
+        "says where each node logs"
+    );
+    assert_eq!(v["pids_after_kill"].as_array().unwrap().len(), 3);
+    assert_eq!(
+        v["alive_after_kill"].as_array().unwrap().len(),
+        0,
+        "nodes left after the launcher was killed: {}",
+        v["alive_after_kill"]
+    );
+}

@@ -1,0 +1,246 @@
+"""A real ROS 2 Jazzy peer (rclpy + Fast DDS) for the fleet tests.
+
+Run inside a private network namespace (the Rust test does it). It starts the fleet, acts as
+a ROS user would (`ros2 topic pub`, `ros2 param get/set`, kill a node, Ctrl-C the launcher)
+and prints what it saw as one JSON object on stdout. The assertions are the Rust test's.
+
+    python fleet_peer.py walk|watchdog|launch BIN_DIR [PARAMS_YAML]
+"""
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rcl_interfaces.msg import Log, Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters
+from geometry_msgs.msg import Twist
+from sensor_msgs.msg import JointState
+from biped_msgs.msg import GaitPhase, WalkCommand
+
+NODES = ["gait_planner", "ik_solver", "joint_bridge"]
+
+
+def stamp_ns(header):
+    return header.stamp.sec * 1_000_000_000 + header.stamp.nanosec
+
+
+class Peer:
+    def __init__(self):
+        rclpy.init()
+        self.node = rclpy.create_node("test_peer")
+        qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+        self.phases, self.commands, self.states, self.rosout = [], [], [], []
+        self.t0 = time.monotonic()
+        n = self.node
+        n.create_subscription(GaitPhase, "/gait/phase", lambda m: self.phases.append(
+            {"stamp": stamp_ns(m.header), "phase": m.phase, "support": m.support, "step": m.step_index}), qos)
+        n.create_subscription(JointState, "/joint_commands", lambda m: self.commands.append(
+            {"stamp": stamp_ns(m.header), "name": list(m.name), "position": list(m.position)}), qos)
+        n.create_subscription(JointState, "/joint_states", lambda m: self.states.append(
+            {"t": self.now(), "name": list(m.name), "position": list(m.position)}), qos)
+        n.create_subscription(Log, "/rosout", lambda m: self.rosout.append(
+            {"t": self.now(), "name": m.name, "level": int(m.level), "msg": m.msg}), QoSProfile(depth=1000))
+        self.walk_pub = n.create_publisher(WalkCommand, "/walk_command", 10)
+        self.cmd_vel_pub = n.create_publisher(Twist, "/cmd_vel", 10)
+
+    def now(self):
+        return time.monotonic() - self.t0
+
+    def spin(self, seconds, until=None):
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            rclpy.spin_once(self.node, timeout_sec=0.005)
+            if until is not None and until():
+                return True
+        return False
+
+    def node_names(self):
+        return sorted(name for name, _ in self.node.get_node_names_and_namespaces())
+
+    def wait_for_nodes(self, timeout=20.0):
+        return self.spin(timeout, lambda: all(x in self.node_names() for x in NODES))
+
+    def wait_for_subscribers(self, publisher, timeout=10.0):
+        # Never sleep and hope: wait until the fleet's subscription has matched.
+        return self.spin(timeout, lambda: publisher.get_subscription_count() > 0)
+
+    def call(self, srv_type, name, request, timeout=10.0):
+        client = self.node.create_client(srv_type, name)
+        if not client.wait_for_service(timeout_sec=timeout):
+            return None
+        future = client.call_async(request)
+        self.spin(timeout, lambda: future.done())
+        return future.result()
+
+    def get_param(self, node, name):
+        r = self.call(GetParameters, f"/{node}/get_parameters", GetParameters.Request(names=[name]))
+        if r is None or not r.values:
+            return None
+        v = r.values[0]
+        return {"type": int(v.type), "double": v.double_value, "string": v.string_value,
+                "bool": v.bool_value, "integer": v.integer_value}
+
+    def set_double(self, node, name, value):
+        p = Parameter(name=name, value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value))
+        r = self.call(SetParameters, f"/{node}/set_parameters", SetParameters.Request(parameters=[p]))
+        if r is None:
+            return None
+        return {"successful": bool(r.results[0].successful), "reason": r.results[0].reason}
+
+    def walk(self, steps, step_length=0.0, step_duration=0.0, stop=False):
+        self.walk_pub.publish(WalkCommand(steps=steps, step_length=step_length, step_duration=step_duration, stop=stop))
+
+    def idle_after_walking(self):
+        walked = [p for p in self.phases if p["phase"] != "idle"]
+        return bool(walked) and self.phases[-1]["phase"] == "idle"
+
+
+def start_nodes(bin_dir, params, extra=None):
+    procs = {}
+    for name in NODES:
+        args = [os.path.join(bin_dir, name), "--ros-args"]
+        if params:
+            args += ["--params-file", params]
+        args += (extra or {}).get(name, [])
+        procs[name] = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    return procs
+
+
+def stop_nodes(procs):
+    errors = {}
+    for name, p in procs.items():
+        if p.poll() is None:
+            p.send_signal(signal.SIGINT)
+    for name, p in procs.items():
+        try:
+            _, err = p.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            _, err = p.communicate()
+        errors[name] = {"returncode": p.returncode, "stderr_tail": err[-2000:] if err else ""}
+    return errors
+
+
+def scenario_walk(bin_dir, params):
+    procs = start_nodes(bin_dir, params)
+    peer = Peer()
+    out = {"nodes_seen": peer.wait_for_nodes()}
+    out["node_names"] = peer.node_names()
+    out["param_before"] = peer.get_param("gait_planner", "step_duration_s")
+    out["matched"] = peer.wait_for_subscribers(peer.walk_pub) and peer.wait_for_subscribers(peer.cmd_vel_pub)
+    # Let the idle fleet run a moment so /joint_commands flows before the walk.
+    peer.spin(0.5)
+    peer.walk(2)
+    # Bad commands during the walk: each must be refused with a warning, the walk unaffected.
+    peer.spin(2.5)
+    bad = Twist()
+    bad.linear.x = math.nan
+    peer.cmd_vel_pub.publish(bad)
+    back = Twist()
+    back.linear.x = -0.1
+    peer.cmd_vel_pub.publish(back)
+    peer.walk(3, step_length=-1.0)
+    peer.walk(3, step_duration=math.inf)
+    out["set_during_walk"] = peer.set_double("gait_planner", "step_duration_s", 0.8)
+    out["finished"] = peer.spin(40.0, peer.idle_after_walking)
+    peer.spin(0.5)
+    out["set_after_walk"] = peer.set_double("gait_planner", "foot_lift_m", 0.02)
+    out["set_invalid"] = peer.set_double("gait_planner", "control_rate_hz", 5000.0)
+    out["param_after"] = peer.get_param("gait_planner", "foot_lift_m")
+    peer.spin(0.3)
+    out.update(phases=peer.phases, commands=peer.commands, rosout=peer.rosout,
+               states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None)
+    out["exits"] = stop_nodes(procs)
+    return out
+
+
+def scenario_watchdog(bin_dir, params):
+    extra = {"joint_bridge": ["-p", "watchdog_timeout_s:=0.2"]}
+    procs = start_nodes(bin_dir, params, extra)
+    peer = Peer()
+    out = {"nodes_seen": peer.wait_for_nodes(), "matched": peer.wait_for_subscribers(peer.walk_pub)}
+    peer.walk(0)  # until stopped
+    # Into the walk (crouch 1 s, shift 1 s, half step): the joints are moving.
+    peer.spin(3.5)
+    procs["ik_solver"].kill()
+    out["kill_t"] = peer.now()
+    peer.spin(2.0)
+    out.update(states=peer.states, rosout=peer.rosout)
+    out["exits"] = stop_nodes(procs)
+    return out
+
+
+def scenario_launch(bin_dir, params):
+    biped = os.path.join(bin_dir, "biped")
+    log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test")
+    launcher = subprocess.Popen([biped, "launch", "--log-dir", log_dir], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    peer = Peer()
+    out = {"nodes_seen": peer.wait_for_nodes(30.0), "node_names": peer.node_names()}
+    launcher.send_signal(signal.SIGINT)
+    try:
+        stdout, stderr = launcher.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        launcher.kill()
+        stdout, stderr = launcher.communicate()
+    out["launcher_returncode"] = launcher.returncode
+    out["launcher_stdout"] = stdout
+    out["launcher_stderr"] = stderr[-2000:]
+    pids = [int(line.split("(pid ")[1].split(")")[0]) for line in stdout.splitlines() if "(pid " in line]
+    out["pids"] = pids
+    alive = []
+    for pid in pids:
+        try:
+            os.kill(pid, 0)
+            alive.append(pid)
+        except ProcessLookupError:
+            pass
+    out["alive_after"] = alive
+    # A launcher killed outright: its nodes notice and stop by themselves.
+    launcher = subprocess.Popen([biped, "launch", "--log-dir", log_dir + "-kill"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    pids2 = []
+    while len(pids2) < 3:
+        line = launcher.stdout.readline()
+        if not line:
+            break
+        if "(pid " in line:
+            pids2.append(int(line.split("(pid ")[1].split(")")[0]))
+    time.sleep(1.0)
+    launcher.kill()
+    launcher.wait()
+    deadline = time.monotonic() + 5.0
+    while time.monotonic() < deadline:
+        still = []
+        for pid in pids2:
+            try:
+                os.kill(pid, 0)
+                # A zombie child of the killed launcher is reparented and reaped by init.
+                with open(f"/proc/{pid}/stat") as f:
+                    if f.read().split()[2] != "Z":
+                        still.append(pid)
+            except (ProcessLookupError, FileNotFoundError):
+                pass
+        if not still:
+            break
+        time.sleep(0.1)
+    out["pids_after_kill"] = pids2
+    out["alive_after_kill"] = still
+    for pid in still:
+        os.kill(pid, signal.SIGKILL)
+    return out
+
+
+def main():
+    scenario, bin_dir = sys.argv[1], sys.argv[2]
+    params = sys.argv[3] if len(sys.argv) > 3 else None
+    result = {"walk": scenario_walk, "watchdog": scenario_watchdog, "launch": scenario_launch}[scenario](bin_dir, params)
+    json.dump(result, sys.stdout)
+
+
+if __name__ == "__main__":
+    main()
