@@ -201,6 +201,8 @@ impl<B: Backend> JointBridge<B> {
     /// Torque off (on shutdown, signals, errors).
     pub fn stop(&mut self) -> Result<(), BackendError> {
         let r = self.backend.deactivate();
+        // Stopped on purpose: no later command may turn the torque back on.
+        self.tripped = false;
         if self.state != Lifecycle::Unconfigured {
             self.state = Lifecycle::Inactive;
         }
@@ -265,7 +267,7 @@ impl<B: Backend> JointBridge<B> {
         }
         if any {
             self.last_command_s = Some(t_s);
-            if self.tripped {
+            if self.tripped && self.state != Lifecycle::Error {
                 self.tripped = false;
                 if self.state == Lifecycle::Inactive {
                     // Back from limp: torque on again; the output starts where it was left.
@@ -309,7 +311,12 @@ impl<B: Backend> JointBridge<B> {
         if self.state == Lifecycle::Active {
             for ((out, &target), spec) in self.output.iter_mut().zip(&self.target).zip(&self.joints)
             {
-                let step = spec.velocity_rad_s * dt;
+                // No speed limit: straight to the target (inf × 0 would be NaN).
+                let step = if spec.velocity_rad_s.is_finite() {
+                    spec.velocity_rad_s * dt
+                } else {
+                    f64::INFINITY
+                };
                 *out += (target - *out).clamp(-step, step);
             }
             if let Err(e) = self.backend.write(t_s, &self.output) {

@@ -358,13 +358,14 @@ pub mod qos {
 pub type ParameterCheck = Box<dyn Fn(&str, &ParameterValue) -> Result<(), String> + Send + Sync>;
 
 /// Creates a node with parameter services and `/rosout` on, with the given parameters
-/// declared.
+/// declared; `use_sim_time` makes its clock follow `/clock`.
 pub fn create_node(
     context: &Context,
     name: &str,
     namespace: &str,
     declared: &BTreeMap<String, ParameterValue>,
     on_set: Option<ParameterCheck>,
+    use_sim_time: bool,
 ) -> Result<Node, RosError> {
     let ns = if namespace.starts_with('/') {
         namespace.to_owned()
@@ -391,12 +392,17 @@ pub fn create_node(
                 }
             }));
     }
-    context
+    let node = context
         .new_node(node_name, options)
         .map_err(|e| RosError::Dds {
             what: format!("node {name}"),
             message: format!("{e:?}"),
-        })
+        })?;
+    if use_sim_time {
+        node.set_parameter("use_sim_time", ParameterValue::Boolean(true))
+            .map_err(|e| RosError::Params(format!("use_sim_time: {e}")))?;
+    }
+    Ok(node)
 }
 
 /// A topic name after the node's remaps, resolved in its namespace: `cmd_vel` in `/` is
@@ -551,6 +557,14 @@ impl NodeSetup {
             namespace,
             params,
         })
+    }
+
+    /// The `use_sim_time` parameter (false unless set true).
+    pub fn use_sim_time(&self) -> bool {
+        self.params
+            .get("use_sim_time")
+            .and_then(Value::as_bool)
+            .unwrap_or(false)
     }
 
     /// A string parameter, or `default`.

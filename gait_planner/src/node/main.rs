@@ -289,6 +289,7 @@ fn run() -> anyhow::Result<()> {
         &setup.namespace,
         &declared(&params, &robot_file)?,
         Some(Box::new(check)),
+        setup.use_sim_time(),
     )?;
     let log = Log::new(&node, &setup.args);
     let stop = ros::shutdown_flag()?;

@@ -106,6 +106,7 @@ fn run() -> anyhow::Result<()> {
         &setup.namespace,
         &declared,
         Some(Box::new(check)),
+        setup.use_sim_time(),
     )?;
     let log = Log::new(&node, &setup.args);
     let stop = ros::shutdown_flag()?;
