@@ -81,10 +81,10 @@ fn absolute(p: &Path) -> anyhow::Result<PathBuf> {
 
 fn interrupt(children: &mut [Running], signal: Signal) {
     for r in children.iter_mut() {
-        if matches!(r.child.try_wait(), Ok(None)) {
-            if let Ok(pid) = i32::try_from(r.child.id()) {
-                let _ = kill(Pid::from_raw(pid), signal);
-            }
+        if matches!(r.child.try_wait(), Ok(None))
+            && let Ok(pid) = i32::try_from(r.child.id())
+        {
+            let _ = kill(Pid::from_raw(pid), signal);
         }
     }
 }

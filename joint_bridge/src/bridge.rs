@@ -186,11 +186,12 @@ impl<B: Backend> JointBridge<B> {
     /// Configures and activates the backend. The output starts at the measured pose where
     /// the backend can measure it, so the first command is approached at the velocity limits.
     pub fn start(&mut self) -> Result<(), BackendError> {
-        if let Some(measured) = self.backend.configure(&self.joints)? {
-            if measured.len() == self.joints.len() && measured.iter().all(|v| v.is_finite()) {
-                self.output = measured.clone();
-                self.target = measured;
-            }
+        if let Some(measured) = self.backend.configure(&self.joints)?
+            && measured.len() == self.joints.len()
+            && measured.iter().all(|v| v.is_finite())
+        {
+            self.output = measured.clone();
+            self.target = measured;
         }
         self.state = Lifecycle::Inactive;
         self.backend.activate()?;
@@ -288,23 +289,24 @@ impl<B: Backend> JointBridge<B> {
         let mut events = Vec::new();
         let dt = self.last_tick_s.map_or(0.0, |l| (t_s - l).max(0.0));
         self.last_tick_s = Some(t_s);
-        if self.state == Lifecycle::Active && !self.tripped {
-            if let Some(last) = self.last_command_s {
-                let silence = t_s - last;
-                if silence > self.config.watchdog_timeout_s {
-                    self.tripped = true;
-                    // Hold where the joints are now, not where they were heading.
-                    self.target.copy_from_slice(&self.output);
-                    events.push(Event::WatchdogTripped {
-                        silence_s: silence,
-                        action: self.config.on_timeout,
-                    });
-                    if self.config.on_timeout == TimeoutAction::Limp {
-                        if let Err(e) = self.backend.deactivate() {
-                            events.push(Event::BackendFailed(e));
-                        }
-                        self.state = Lifecycle::Inactive;
+        if self.state == Lifecycle::Active
+            && !self.tripped
+            && let Some(last) = self.last_command_s
+        {
+            let silence = t_s - last;
+            if silence > self.config.watchdog_timeout_s {
+                self.tripped = true;
+                // Hold where the joints are now, not where they were heading.
+                self.target.copy_from_slice(&self.output);
+                events.push(Event::WatchdogTripped {
+                    silence_s: silence,
+                    action: self.config.on_timeout,
+                });
+                if self.config.on_timeout == TimeoutAction::Limp {
+                    if let Err(e) = self.backend.deactivate() {
+                        events.push(Event::BackendFailed(e));
                     }
+                    self.state = Lifecycle::Inactive;
                 }
             }
         }

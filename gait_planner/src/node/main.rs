@@ -296,13 +296,12 @@ fn run() -> anyhow::Result<()> {
 
     let qos = ros::qos::default();
     let topic = |node: &Node, name: &str, ty| -> anyhow::Result<ros2_client::dds::rustdds::Topic> {
-        Ok(node
-            .create_topic(
-                &ros::topic_name(&setup.args, &setup.namespace, name)?,
-                ty,
-                &qos,
-            )
-            .map_err(|e| anyhow::anyhow!("topic {name}: {e:?}"))?)
+        node.create_topic(
+            &ros::topic_name(&setup.args, &setup.namespace, name)?,
+            ty,
+            &qos,
+        )
+        .map_err(|e| anyhow::anyhow!("topic {name}: {e:?}"))
     };
     let phase_pub = node
         .create_publisher::<GaitPhase>(
