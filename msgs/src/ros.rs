@@ -654,3 +654,114 @@ impl Ticker {
         self.k - 1
     }
 }
+
+/// A started node: the DDS context, the ros2-client node, its setup and its log, with
+/// helpers that create typed publishers and subscriptions on resolved topic names.
+pub struct RosNode {
+    /// The node.
+    pub node: Node,
+    /// What it was started with.
+    pub setup: NodeSetup,
+    /// Console + `/rosout`.
+    pub log: Log,
+    // The node keeps its DDS participant alive through this.
+    _context: Context,
+}
+
+impl std::fmt::Debug for RosNode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RosNode")
+            .field("node", &self.node.fully_qualified_name())
+            .finish()
+    }
+}
+
+fn dds_err(what: String) -> impl FnOnce(ros2_client::ros2::CreateError) -> RosError {
+    move |e| RosError::Dds {
+        what,
+        message: format!("{e:?}"),
+    }
+}
+
+impl RosNode {
+    /// Joins the DDS domain of the environment and creates the node with its declared
+    /// parameters and parameter check.
+    pub fn start(
+        setup: NodeSetup,
+        declared: &BTreeMap<String, ParameterValue>,
+        check: Option<ParameterCheck>,
+    ) -> Result<Self, RosError> {
+        let context = context_from_env()?;
+        let node = create_node(
+            &context,
+            &setup.name,
+            &setup.namespace,
+            declared,
+            check,
+            setup.use_sim_time(),
+        )?;
+        let log = Log::new(&node, &setup.args);
+        Ok(Self {
+            node,
+            setup,
+            log,
+            _context: context,
+        })
+    }
+
+    fn topic<M: crate::RosMessage>(
+        &self,
+        name: &str,
+    ) -> Result<ros2_client::dds::rustdds::Topic, RosError> {
+        let resolved = topic_name(&self.setup.args, &self.setup.namespace, name)?;
+        self.node
+            .create_topic(&resolved, M::message_type_name(), &qos::default())
+            .map_err(dds_err(format!("topic {name}")))
+    }
+
+    /// A publisher of `M` on topic `name` (remapped, in the namespace), default QoS.
+    pub fn publisher<M: crate::RosMessage>(
+        &mut self,
+        name: &str,
+    ) -> Result<ros2_client::Publisher<M>, RosError> {
+        let topic = self.topic::<M>(name)?;
+        self.node
+            .create_publisher::<M>(&topic, None)
+            .map_err(dds_err(format!("publisher {name}")))
+    }
+
+    /// A subscription to `M` on topic `name` (remapped, in the namespace), default QoS.
+    pub fn subscription<M: crate::RosMessage + 'static>(
+        &mut self,
+        name: &str,
+    ) -> Result<ros2_client::Subscription<M>, RosError> {
+        let topic = self.topic::<M>(name)?;
+        self.node
+            .create_subscription::<M>(&topic, None)
+            .map_err(dds_err(format!("subscription {name}")))
+    }
+
+    /// An executor running the node's spinner (discovery, parameter services, `/clock`).
+    pub fn executor(&mut self) -> Result<smol::LocalExecutor<'static>, RosError> {
+        let spinner = self.node.spinner().map_err(|e| RosError::Dds {
+            what: "spinner".into(),
+            message: format!("{e:?}"),
+        })?;
+        let executor = smol::LocalExecutor::new();
+        executor.spawn(spinner.spin()).detach();
+        Ok(executor)
+    }
+
+    /// Logs at info.
+    pub fn info(&self, msg: &str) {
+        self.log.info(&self.node, msg);
+    }
+    /// Logs a warning.
+    pub fn warn(&self, msg: &str) {
+        self.log.warn(&self.node, msg);
+    }
+    /// Logs an error.
+    pub fn error(&self, msg: &str) {
+        self.log.error(&self.node, msg);
+    }
+}

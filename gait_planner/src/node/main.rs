@@ -18,12 +18,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use anyhow::Context as _;
-use biped_msgs::RosMessage;
 use biped_msgs::msg::{AnkleTargets, GaitPhase, Header, Point, Twist, WalkCommand};
-use biped_msgs::ros::{self, Log, NodeSetup, Ticker};
+use biped_msgs::ros::{self, NodeSetup, RosNode, Ticker};
 use gait_planner::{GaitParams, GaitPlanner, GaitSample, PhaseKind, WalkRequest};
 use ik_solver::BipedModel;
-use ros2_client::{Node, ParameterValue};
+use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
 
@@ -239,7 +238,6 @@ fn run() -> anyhow::Result<()> {
     let rate = planner.config().control_rate_hz;
     let base_frame = model.robot().links()[model.robot().root()].name.clone();
 
-    let context = ros::context_from_env()?;
     // Parameter sets from peers: checked here (a refused set returns its reason to the
     // peer), applied by the loop between walks.
     let walking = Arc::new(AtomicBool::new(false));
@@ -283,61 +281,16 @@ fn run() -> anyhow::Result<()> {
             tx.send(candidate).map_err(|e| e.to_string())
         }
     };
-    let mut node = ros::create_node(
-        &context,
-        &setup.name,
-        &setup.namespace,
-        &declared(&params, &robot_file)?,
-        Some(Box::new(check)),
-        setup.use_sim_time(),
-    )?;
-    let log = Log::new(&node, &setup.args);
+    let declared = declared(&params, &robot_file)?;
+    let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
     let stop = ros::shutdown_flag()?;
-
-    let qos = ros::qos::default();
-    let topic = |node: &Node, name: &str, ty| -> anyhow::Result<ros2_client::dds::rustdds::Topic> {
-        node.create_topic(
-            &ros::topic_name(&setup.args, &setup.namespace, name)?,
-            ty,
-            &qos,
-        )
-        .map_err(|e| anyhow::anyhow!("topic {name}: {e:?}"))
-    };
-    let phase_pub = node
-        .create_publisher::<GaitPhase>(
-            &topic(&node, "gait/phase", GaitPhase::message_type_name())?,
-            None,
-        )
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let targets_pub = node
-        .create_publisher::<AnkleTargets>(
-            &topic(
-                &node,
-                "gait/ankle_targets",
-                AnkleTargets::message_type_name(),
-            )?,
-            None,
-        )
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let cmd_vel = node
-        .create_subscription::<Twist>(&topic(&node, "cmd_vel", Twist::message_type_name())?, None)
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let walk_cmd = node
-        .create_subscription::<WalkCommand>(
-            &topic(&node, "walk_command", WalkCommand::message_type_name())?,
-            None,
-        )
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-
-    let spinner = node
-        .spinner()
-        .map_err(|e| anyhow::anyhow!("spinner: {e:?}"))?;
-    let executor = smol::LocalExecutor::new();
-    executor.spawn(spinner.spin()).detach();
+    let phase_pub = ros.publisher::<GaitPhase>("gait/phase")?;
+    let targets_pub = ros.publisher::<AnkleTargets>("gait/ankle_targets")?;
+    let cmd_vel = ros.subscription::<Twist>("cmd_vel")?;
+    let walk_cmd = ros.subscription::<WalkCommand>("walk_command")?;
+    let executor = ros.executor()?;
     let c = planner.config();
-    log.info(
-        &node,
-        &format!(
+    ros.info(&format!(
             "ready: robot {}, step {:.4} m, {} Hz; send biped_msgs/msg/WalkCommand on walk_command or geometry_msgs/msg/Twist on cmd_vel",
             model.robot().name(),
             c.step_length_m,
@@ -357,49 +310,46 @@ fn run() -> anyhow::Result<()> {
                 match planner.set_params(p.clone()) {
                     Ok(()) => {
                         params = p;
-                        log.info(&node, "parameters changed");
+                        ros.info("parameters changed");
                     }
-                    Err(e) => log.warn(&node, &format!("parameter change not applied: {e}")),
+                    Err(e) => ros.warn(&format!("parameter change not applied: {e}")),
                 }
             }
             while let Ok(Some((msg, _))) = walk_cmd.take() {
                 for w in commands.walk_command(&mut planner, &msg, &mut params) {
-                    log.warn(&node, &w);
+                    ros.warn(&w);
                 }
             }
             while let Ok(Some((msg, _))) = cmd_vel.take() {
                 for w in commands.cmd_vel(&mut planner, &msg, &params) {
-                    log.warn(&node, &w);
+                    ros.warn(&w);
                 }
             }
             let sample = match planner.update(k as f64 / rate) {
                 Ok(s) => s,
                 Err(e) => {
-                    log.error(&node, &format!("planner: {e}"));
+                    ros.error(&format!("planner: {e}"));
                     continue;
                 }
             };
             walking.store(sample.phase != PhaseKind::Idle, Ordering::SeqCst);
             if last_phase != Some((sample.phase, sample.step_index)) {
-                log.info(
-                    &node,
-                    &format!(
-                        "phase {} ({} support, step {})",
-                        sample.phase, sample.support, sample.step_index
-                    ),
-                );
+                ros.info(&format!(
+                    "phase {} ({} support, step {})",
+                    sample.phase, sample.support, sample.step_index
+                ));
                 last_phase = Some((sample.phase, sample.step_index));
             }
-            let (phase, targets) = to_msgs(&sample, node.time_now().into(), &base_frame);
+            let (phase, targets) = to_msgs(&sample, ros.node.time_now().into(), &base_frame);
             if let Err(e) = targets_pub.publish(targets) {
-                log.error(&node, &format!("publish gait/ankle_targets: {e:?}"));
+                ros.error(&format!("publish gait/ankle_targets: {e:?}"));
             }
             if let Err(e) = phase_pub.publish(phase) {
-                log.error(&node, &format!("publish gait/phase: {e:?}"));
+                ros.error(&format!("publish gait/phase: {e:?}"));
             }
         }
         Ok(())
     }));
-    log.info(&node, "shutting down");
+    ros.info("shutting down");
     result
 }

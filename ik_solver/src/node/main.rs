@@ -15,9 +15,8 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use biped_msgs::RosMessage;
 use biped_msgs::msg::{AnkleTargets, JointState};
-use biped_msgs::ros::{self, Log, NodeSetup};
+use biped_msgs::ros::{self, NodeSetup, RosNode};
 use ik_solver::{AnkleTarget, BipedModel, Side};
 use nalgebra::Vector3;
 use ros2_client::ParameterValue;
@@ -88,7 +87,6 @@ fn run() -> anyhow::Result<()> {
         })
         .unzip();
 
-    let context = ros::context_from_env()?;
     let declared = BTreeMap::from([(
         ROBOT_PARAM.to_string(),
         ParameterValue::String(robot_file.clone()),
@@ -100,50 +98,16 @@ fn run() -> anyhow::Result<()> {
             Ok(())
         }
     };
-    let mut node = ros::create_node(
-        &context,
-        &setup.name,
-        &setup.namespace,
-        &declared,
-        Some(Box::new(check)),
-        setup.use_sim_time(),
-    )?;
-    let log = Log::new(&node, &setup.args);
+    let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
     let stop = ros::shutdown_flag()?;
-    let qos = ros::qos::default();
-    let targets_topic = node
-        .create_topic(
-            &ros::topic_name(&setup.args, &setup.namespace, "gait/ankle_targets")?,
-            AnkleTargets::message_type_name(),
-            &qos,
-        )
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let commands_topic = node
-        .create_topic(
-            &ros::topic_name(&setup.args, &setup.namespace, "joint_commands")?,
-            JointState::message_type_name(),
-            &qos,
-        )
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let sub = node
-        .create_subscription::<AnkleTargets>(&targets_topic, None)
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let publisher = node
-        .create_publisher::<JointState>(&commands_topic, None)
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let spinner = node
-        .spinner()
-        .map_err(|e| anyhow::anyhow!("spinner: {e:?}"))?;
-    let executor = smol::LocalExecutor::new();
-    executor.spawn(spinner.spin()).detach();
-    log.info(
-        &node,
-        &format!(
-            "ready: robot {}, solving {} leg joints",
-            model.robot().name(),
-            names.len()
-        ),
-    );
+    let sub = ros.subscription::<AnkleTargets>("gait/ankle_targets")?;
+    let publisher = ros.publisher::<JointState>("joint_commands")?;
+    let executor = ros.executor()?;
+    ros.info(&format!(
+        "ready: robot {}, solving {} leg joints",
+        model.robot().name(),
+        names.len()
+    ));
 
     let mut q = vec![0.0; model.robot().dof_count()];
     let mut last_report: BTreeMap<String, Instant> = BTreeMap::new();
@@ -157,10 +121,9 @@ fn run() -> anyhow::Result<()> {
             let msg = match received {
                 Ok((m, _)) => m,
                 Err(e) => {
-                    log.warn(
-                        &node,
-                        &format!("gait/ankle_targets: unreadable message dropped: {e:?}"),
-                    );
+                    ros.warn(&format!(
+                        "gait/ankle_targets: unreadable message dropped: {e:?}"
+                    ));
                     continue;
                 }
             };
@@ -173,18 +136,18 @@ fn run() -> anyhow::Result<()> {
                             .get(&key)
                             .is_none_or(|t| t.elapsed() > Duration::from_secs(1));
                         if due {
-                            log.warn(&node, &issue);
+                            ros.warn(&issue);
                             last_report.insert(key, Instant::now());
                         }
                     }
                     if let Err(e) = publisher.publish(js) {
-                        log.error(&node, &format!("publish joint_commands: {e:?}"));
+                        ros.error(&format!("publish joint_commands: {e:?}"));
                     }
                 }
-                Err(why) => log.warn(&node, &why),
+                Err(why) => ros.warn(&why),
             }
         }
     }));
-    log.info(&node, "shutting down");
+    ros.info("shutting down");
     Ok(())
 }

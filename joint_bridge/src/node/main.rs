@@ -15,9 +15,8 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 
 use anyhow::Context as _;
-use biped_msgs::RosMessage;
 use biped_msgs::msg::{Header, JointState};
-use biped_msgs::ros::{self, Log, NodeSetup, Ticker};
+use biped_msgs::ros::{self, NodeSetup, RosNode, Ticker};
 use ik_solver::BipedModel;
 use joint_bridge::{BridgeConfig, Event, JointBridge, JointSpec, MockBackend, TimeoutAction};
 use ros2_client::ParameterValue;
@@ -80,7 +79,6 @@ fn run() -> anyhow::Result<()> {
         },
     );
 
-    let context = ros::context_from_env()?;
     let declared = BTreeMap::from([
         (
             "robot_description_file".to_string(),
@@ -113,49 +111,16 @@ fn run() -> anyhow::Result<()> {
             ))
         }
     };
-    let mut node = ros::create_node(
-        &context,
-        &setup.name,
-        &setup.namespace,
-        &declared,
-        Some(Box::new(check)),
-        setup.use_sim_time(),
-    )?;
-    let log = Log::new(&node, &setup.args);
+    let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
     let stop = ros::shutdown_flag()?;
-    let qos = ros::qos::default();
-    let commands_topic = node
-        .create_topic(
-            &ros::topic_name(&setup.args, &setup.namespace, "joint_commands")?,
-            JointState::message_type_name(),
-            &qos,
-        )
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let states_topic = node
-        .create_topic(
-            &ros::topic_name(&setup.args, &setup.namespace, "joint_states")?,
-            JointState::message_type_name(),
-            &qos,
-        )
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let sub = node
-        .create_subscription::<JointState>(&commands_topic, None)
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let publisher = node
-        .create_publisher::<JointState>(&states_topic, None)
-        .map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    let spinner = node
-        .spinner()
-        .map_err(|e| anyhow::anyhow!("spinner: {e:?}"))?;
-    let executor = smol::LocalExecutor::new();
-    executor.spawn(spinner.spin()).detach();
+    let sub = ros.subscription::<JointState>("joint_commands")?;
+    let publisher = ros.publisher::<JointState>("joint_states")?;
+    let executor = ros.executor()?;
 
     bridge
         .start()
         .map_err(|e| anyhow::anyhow!("backend {backend_name}: {e}"))?;
-    log.info(
-        &node,
-        &format!(
+    ros.info(&format!(
             "ready: backend {backend_name} active, {} joints, {rate_hz} Hz, watchdog {timeout_s} s ({action_name}); joint_states carries commanded positions (the {backend_name} backend cannot measure)",
             names.len()
         ),
@@ -164,9 +129,9 @@ fn run() -> anyhow::Result<()> {
     let report = |events: Vec<Event>| {
         for e in events {
             match e {
-                Event::Resumed => log.info(&node, &e.to_string()),
-                Event::BackendFailed(_) => log.error(&node, &e.to_string()),
-                _ => log.warn(&node, &e.to_string()),
+                Event::Resumed => ros.info(&e.to_string()),
+                Event::BackendFailed(_) => ros.error(&e.to_string()),
+                _ => ros.warn(&e.to_string()),
             }
         }
     };
@@ -181,10 +146,9 @@ fn run() -> anyhow::Result<()> {
                     }
                     Ok(None) => break,
                     Err(e) => {
-                        log.warn(
-                            &node,
-                            &format!("joint_commands: unreadable message dropped: {e:?}"),
-                        );
+                        ros.warn(&format!(
+                            "joint_commands: unreadable message dropped: {e:?}"
+                        ));
                         break;
                     }
                 }
@@ -195,7 +159,7 @@ fn run() -> anyhow::Result<()> {
                 Ok(r) => {
                     let msg = JointState {
                         header: Header {
-                            stamp: node.time_now().into(),
+                            stamp: ros.node.time_now().into(),
                             frame_id: String::new(),
                         },
                         name: names.clone(),
@@ -204,16 +168,16 @@ fn run() -> anyhow::Result<()> {
                         effort: Vec::new(),
                     };
                     if let Err(e) = publisher.publish(msg) {
-                        log.error(&node, &format!("publish joint_states: {e:?}"));
+                        ros.error(&format!("publish joint_states: {e:?}"));
                     }
                 }
-                Err(e) => log.error(&node, &format!("backend read: {e}")),
+                Err(e) => ros.error(&format!("backend read: {e}")),
             }
         }
     }));
     if let Err(e) = bridge.stop() {
-        log.error(&node, &format!("torque off failed: {e}"));
+        ros.error(&format!("torque off failed: {e}"));
     }
-    log.info(&node, "shutting down: torque off");
+    ros.info("shutting down: torque off");
     Ok(())
 }
