@@ -275,8 +275,15 @@ pub enum DiscoveryRange {
 
 /// Reads `ROS_DOMAIN_ID` (0–232, default 0) and the discovery range from the environment.
 pub fn ros_environment() -> Result<(u16, DiscoveryRange), RosError> {
-    let domain = match std::env::var("ROS_DOMAIN_ID") {
-        Ok(v) if !v.trim().is_empty() => {
+    ros_environment_from(|name| std::env::var(name).ok())
+}
+
+/// [`ros_environment`] over any variable lookup (for tests and embedding).
+pub fn ros_environment_from(
+    var: impl Fn(&str) -> Option<String>,
+) -> Result<(u16, DiscoveryRange), RosError> {
+    let domain = match var("ROS_DOMAIN_ID") {
+        Some(v) if !v.trim().is_empty() => {
             let id: u16 = v.trim().parse().map_err(|_| RosError::Env {
                 name: "ROS_DOMAIN_ID",
                 value: v.clone(),
@@ -293,14 +300,14 @@ pub fn ros_environment() -> Result<(u16, DiscoveryRange), RosError> {
         }
         _ => 0,
     };
-    let range = match std::env::var("ROS_AUTOMATIC_DISCOVERY_RANGE")
+    let range = match var("ROS_AUTOMATIC_DISCOVERY_RANGE")
         .unwrap_or_default()
         .to_ascii_uppercase()
         .as_str()
     {
         "LOCALHOST" | "OFF" => DiscoveryRange::Localhost,
         "" | "SYSTEM_DEFAULT" | "SUBNET" => {
-            if std::env::var("ROS_LOCALHOST_ONLY").as_deref() == Ok("1") {
+            if var("ROS_LOCALHOST_ONLY").as_deref() == Some("1") {
                 DiscoveryRange::Localhost
             } else {
                 DiscoveryRange::Subnet

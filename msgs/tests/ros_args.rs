@@ -169,3 +169,54 @@ fn node_setup_reads_typed_parameters() {
             .contains("`bad`")
     );
 }
+
+#[test]
+fn domain_id_and_discovery_range_from_the_environment() {
+    use biped_msgs::ros::{DiscoveryRange, ros_environment_from};
+    let env = |pairs: &'static [(&'static str, &'static str)]| {
+        move |k: &str| {
+            pairs
+                .iter()
+                .find(|(n, _)| *n == k)
+                .map(|(_, v)| v.to_string())
+        }
+    };
+    assert_eq!(
+        ros_environment_from(env(&[])).unwrap(),
+        (0, DiscoveryRange::Subnet)
+    );
+    assert_eq!(
+        ros_environment_from(env(&[
+            ("ROS_DOMAIN_ID", "42"),
+            ("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        ]))
+        .unwrap(),
+        (42, DiscoveryRange::Localhost)
+    );
+    assert_eq!(
+        ros_environment_from(env(&[("ROS_LOCALHOST_ONLY", "1")]))
+            .unwrap()
+            .1,
+        DiscoveryRange::Localhost
+    );
+    assert_eq!(
+        ros_environment_from(env(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "off")]))
+            .unwrap()
+            .1,
+        DiscoveryRange::Localhost
+    );
+    for (pairs, needle) in [
+        (&[("ROS_DOMAIN_ID", "233")][..], "233"),
+        (&[("ROS_DOMAIN_ID", "abc")][..], "abc"),
+        (&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "GALAXY")][..], "GALAXY"),
+    ] {
+        let owned: Vec<(String, String)> = pairs
+            .iter()
+            .map(|(a, b)| (a.to_string(), b.to_string()))
+            .collect();
+        let e =
+            ros_environment_from(|k| owned.iter().find(|(n, _)| n == k).map(|(_, v)| v.clone()))
+                .unwrap_err();
+        assert!(e.to_string().contains(needle), "{e}");
+    }
+}
