@@ -1,1 +1,44 @@
-//! placeholder
+//! The biped in MuJoCo: the physics test bench of the walk.
+//!
+//! Data flow: URDF text + [`SimConfig`] → [`Sim`] (the MuJoCo model built from the URDF with
+//! MuJoCo's model editor: a free-floating base, a floor, one position servo per joint with
+//! the URDF's torque limit) → [`Sim::set_targets`] (servo targets in
+//! [`ik_solver::RobotModel::dof_names`] order) and [`Sim::step`] / [`Sim::advance_to`] with
+//! the time passed in → readings: joint positions, base pose, floor contact forces, centre
+//! of pressure against the support polygon of the loaded soles, and whether and why the
+//! robot fell.
+//!
+//! Around it:
+//! - [`static_torques_nm`] / [`compensated_targets_rad`]: the servo-sag compensation of
+//!   ALGORITHM.md ("Position servos are springs"), from the URDF mass model alone;
+//! - [`Playback`], [`WalkMonitor`], [`run_plan`]: a gait_planner plan played open-loop, with
+//!   the measures of a walk ([`WalkReport`]: fall, tilt, heading, distance, foot slip,
+//!   centre of pressure);
+//! - [`SimBackend`]: the simulator behind joint_bridge's [`joint_bridge::Backend`] trait,
+//!   so the node fleet can drive it like a servo board.
+//!
+//! Pure library: no clock (physics time only advances when asked), no files, no middleware.
+//! MuJoCo comes from the PyPI wheel (`scripts/setup-python-env`), linked dynamically.
+
+mod backend;
+mod compensation;
+mod config;
+mod error;
+mod mjmodel;
+mod sim;
+mod walk;
+
+pub use backend::SimBackend;
+pub use compensation::{
+    FootLoad, GRAVITY_M_S2, compensated_targets_rad, static_compensation_rad, static_foot_loads,
+    static_torques_nm,
+};
+pub use config::SimConfig;
+pub use error::SimError;
+pub use sim::{
+    BODY_CONTACT_FRACTION, COP_MIN_FRACTION, ContactReading, Fall, FallReason, LOADED_FRACTION, Sim,
+};
+pub use walk::{
+    FallReport, Interpolation, PhaseMargin, PlayOptions, Playback, STANCE_FRACTION, WalkMonitor,
+    WalkReport, run_plan,
+};
