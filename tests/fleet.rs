@@ -83,6 +83,7 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     let v = peer("walk", 61);
     assert_eq!(v["nodes_seen"], true, "nodes: {}", v["node_names"]);
     assert_eq!(v["matched"], true);
+    assert_eq!(v["flowing"], true, "joint commands and states never flowed");
 
     // The joint commands of the walk, from the first crouch tick to the end of the walk, by
     // the stamps /gait/phase and /joint_commands share.
@@ -213,6 +214,8 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
 fn killing_ik_solver_mid_walk_makes_the_bridge_hold_the_pose() {
     let v = peer("watchdog", 62);
     assert_eq!(v["nodes_seen"], true);
+    assert_eq!(v["flowing"], true, "joint commands and states never flowed");
+    assert_eq!(v["moving"], true, "the walk never moved the joints");
     let kill_t = v["kill_t"].as_f64().unwrap();
     let states = v["states"].as_array().unwrap();
     let pos = |s: &Value| -> Vec<f64> {
@@ -235,7 +238,8 @@ fn killing_ik_solver_mid_walk_makes_the_bridge_hold_the_pose() {
         pos(before[before.len() - 1]),
         "the joints were moving before the kill"
     );
-    // Still after: from the watchdog's time (0.2 s) plus the in-flight commands, nothing moves.
+    // Still after the watchdog's time (0.2 s) plus a few bridge periods: nothing moves. Times
+    // are the bridge's own joint_states stamps, on the clock the kill time was read from.
     let after: Vec<&Value> = states
         .iter()
         .filter(|s| t(s) > kill_t + 0.2 + 0.15)

@@ -42,8 +42,9 @@ class Peer:
             {"stamp": stamp_ns(m.header), "phase": m.phase, "support": m.support, "step": m.step_index}), qos)
         n.create_subscription(JointState, "/joint_commands", lambda m: self.commands.append(
             {"stamp": stamp_ns(m.header), "name": list(m.name), "position": list(m.position)}), qos)
+        # "t": the bridge's own stamp (system clock, s), so a slow peer cannot blur the timing.
         n.create_subscription(JointState, "/joint_states", lambda m: self.states.append(
-            {"t": self.now(), "name": list(m.name), "position": list(m.position)}), qos)
+            {"t": stamp_ns(m.header) * 1e-9, "name": list(m.name), "position": list(m.position)}), qos)
         n.create_subscription(Log, "/rosout", lambda m: self.rosout.append(
             {"t": self.now(), "name": m.name, "level": int(m.level), "msg": m.msg}), QoSProfile(depth=1000))
         self.walk_pub = n.create_publisher(WalkCommand, "/walk_command", 10)
@@ -70,7 +71,7 @@ class Peer:
         # Never sleep and hope: wait until the fleet's subscription has matched.
         return self.spin(timeout, lambda: publisher.get_subscription_count() > 0)
 
-    def call(self, srv_type, name, request, timeout=10.0):
+    def call(self, srv_type, name, request, timeout=30.0):
         client = self.node.create_client(srv_type, name)
         if not client.wait_for_service(timeout_sec=timeout):
             return None
@@ -95,6 +96,11 @@ class Peer:
 
     def walk(self, steps, step_length=0.0, step_duration=0.0, stop=False):
         self.walk_pub.publish(WalkCommand(steps=steps, step_length=step_length, step_duration=step_duration, stop=stop))
+
+    def wait_for_flow(self, timeout=30.0):
+        """Until the idle fleet's pipeline is connected end to end: joint commands and joint
+        states arriving (discovery between the nodes can take seconds on a loaded machine)."""
+        return self.spin(timeout, lambda: len(self.commands) > 5 and len(self.states) > 5)
 
     def idle_after_walking(self):
         walked = [p for p in self.phases if p["phase"] != "idle"]
@@ -134,8 +140,7 @@ def scenario_walk(bin_dir, params):
     out["node_names"] = peer.node_names()
     out["param_before"] = peer.get_param("gait_planner", "step_duration_s")
     out["matched"] = peer.wait_for_subscribers(peer.walk_pub) and peer.wait_for_subscribers(peer.cmd_vel_pub)
-    # Let the idle fleet run a moment so /joint_commands flows before the walk.
-    peer.spin(0.5)
+    out["flowing"] = peer.wait_for_flow()
     peer.walk(2)
     # Bad commands during the walk: each must be refused with a warning, the walk unaffected.
     peer.spin(2.5)
@@ -165,11 +170,15 @@ def scenario_watchdog(bin_dir, params):
     procs = start_nodes(bin_dir, params, extra)
     peer = Peer()
     out = {"nodes_seen": peer.wait_for_nodes(), "matched": peer.wait_for_subscribers(peer.walk_pub)}
+    out["flowing"] = peer.wait_for_flow()
     peer.walk(0)  # until stopped
-    # Into the walk (crouch 1 s, shift 1 s, half step): the joints are moving.
-    peer.spin(3.5)
+    # Into the walk (crouch 1 s, shift 1 s, half step): wait until the joints move, then a bit.
+    first = peer.states[-1]["position"]
+    out["moving"] = peer.spin(30.0, lambda: peer.states[-1]["position"] != first)
+    peer.spin(1.5)
     procs["ik_solver"].kill()
-    out["kill_t"] = peer.now()
+    procs["ik_solver"].wait()
+    out["kill_t"] = time.time()  # the clock of the joint_states stamps
     peer.spin(2.0)
     out.update(states=peer.states, rosout=peer.rosout)
     out["exits"] = stop_nodes(procs)

@@ -255,6 +255,12 @@ fn run() -> anyhow::Result<()> {
             if name == "use_sim_time" {
                 return Ok(());
             }
+            if name == "control_rate_hz" {
+                return Err(
+                    "control_rate_hz is fixed while the node runs; restart it to change the rate"
+                        .into(),
+                );
+            }
             if walking.load(Ordering::SeqCst) {
                 return Err(format!(
                     "{name}: gait parameters can change only between walks"
@@ -272,11 +278,8 @@ fn run() -> anyhow::Result<()> {
             candidate = serde_norway::from_value(serde_norway::Value::Mapping(map))
                 .map_err(|e| format!("{name}: {e}"))?;
             // The same check a walk start does, on a scratch planner.
-            let mut scratch = GaitPlanner::new(model.clone(), GaitParams::default())
-                .map_err(|e| e.to_string())?;
-            scratch
-                .set_params(candidate.clone())
-                .map_err(|e| e.to_string())?;
+            // The check a walk start does (one check walk); the loop applies it between walks.
+            GaitPlanner::new(model.clone(), candidate.clone()).map_err(|e| e.to_string())?;
             *shared.lock().map_err(|e| e.to_string())? = candidate.clone();
             tx.send(candidate).map_err(|e| e.to_string())
         }
