@@ -255,8 +255,6 @@ pub struct Leg {
     pub foot_link: usize,
     /// Orientation of the foot link in the base frame at zero angles.
     pub foot_rotation0: nalgebra::UnitQuaternion<f64>,
-    /// Ankle-pitch axis to the hip point at zero angles: the length of the straight leg (m).
-    pub straight_length_m: f64,
 }
 
 impl Leg {
@@ -755,6 +753,5 @@ fn leg_geometry(
         sole: rect,
         foot_link,
         foot_rotation0: zero.poses[foot_link].rotation,
-        straight_length_m: (p_ap - p_roll).norm(),
     })
 }
