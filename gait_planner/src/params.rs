@@ -71,32 +71,11 @@ impl Default for GaitParams {
     }
 }
 
-/// The parameters with every value concrete, checked against its bounds and the robot.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct GaitConfig {
-    /// See [`GaitParams::step_length_m`].
-    pub step_length_m: f64,
-    /// See [`GaitParams::step_duration_s`].
-    pub step_duration_s: f64,
-    /// See [`GaitParams::shift_duration_s`].
-    pub shift_duration_s: f64,
-    /// See [`GaitParams::crouch_duration_s`].
-    pub crouch_duration_s: f64,
-    /// See [`GaitParams::foot_lift_m`].
-    pub foot_lift_m: f64,
-    /// See [`GaitParams::hip_height_m`].
-    pub hip_height_m: f64,
-    /// See [`GaitParams::control_rate_hz`].
-    pub control_rate_hz: f64,
-    /// See [`GaitParams::min_com_margin_m`].
-    pub min_com_margin_m: f64,
-    /// See [`GaitParams::first_foot`].
-    pub first_foot: Side,
-    /// See [`GaitParams::rise_at_end`].
-    pub rise_at_end: bool,
-}
+/// [`GaitParams`] after [`GaitParams::resolve`]: every value concrete (no 0 = auto left) and
+/// checked against its bounds and the robot.
+pub type GaitConfig = GaitParams;
 
-impl GaitConfig {
+impl GaitParams {
     /// One control period (s).
     pub fn dt_s(&self) -> f64 {
         1.0 / self.control_rate_hz
@@ -201,7 +180,7 @@ impl GaitParams {
     }
 
     /// Checks every bound and fills in the values left at 0 from the robot.
-    pub fn resolve(&self, model: &BipedModel) -> Result<GaitConfig, GaitError> {
+    pub fn resolve(&self, model: &BipedModel) -> Result<GaitParams, GaitError> {
         let left = model.leg(Side::Left);
         let right = model.leg(Side::Right);
         let leg = (left.thigh_m + left.shin_m).min(right.thigh_m + right.shin_m);
@@ -213,7 +192,7 @@ impl GaitParams {
             .min(right.sole.length_m());
         let hip_lo = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + 0.5 * leg;
         let hip_hi = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + leg;
-        Ok(GaitConfig {
+        Ok(GaitParams {
             step_length_m: auto_or(
                 "step_length_m",
                 self.step_length_m,
