@@ -14,6 +14,9 @@ use crate::phase::{PhaseKind, Support, WalkRequest};
 use crate::support::{Xy, convex_hull, signed_margin};
 use crate::trajectory::{min_jerk, swing_advance, swing_height};
 
+/// Times closer than this are the same instant (s); far below any control period.
+const TIME_EPSILON_S: f64 = 1e-9;
+
 /// Everything planned for one control tick.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GaitSample {
@@ -420,8 +423,10 @@ impl GaitPlanner {
             self.phase.duration_s = 0.0;
             self.advance();
         }
-        // The tick at a phase's end time belongs to that phase (progress 1).
-        while t_s > self.phase.end_s() {
+        // The tick at a phase's end time belongs to that phase (progress 1). Times within
+        // a nanosecond count as equal: a walk started at tick k0 has its boundaries at
+        // k0/rate + duration, which rounding can put a hair before tick (k0 + n)/rate.
+        while t_s > self.phase.end_s() + TIME_EPSILON_S {
             self.advance();
             if self.phase.kind == PhaseKind::Idle {
                 break;

@@ -232,3 +232,29 @@ fn time_going_backwards_or_nan_is_refused() {
     ));
     assert!(p.update(1.0).is_ok());
 }
+
+#[test]
+fn a_walk_started_at_any_tick_has_the_ticks_of_the_offline_plan() {
+    // The node starts walks at whatever tick the command arrives, t0 = k0 / rate; rounding in
+    // t0 + duration must not move a boundary tick into the next phase.
+    let offline: Vec<(PhaseKind, u32)> = plan(2, GaitParams::default())
+        .iter()
+        .map(|s| (s.phase, s.step_index))
+        .collect();
+    for k0 in (1..400).step_by(7).chain([357, 1234, 98_765]) {
+        let mut p = planner(GaitParams::default());
+        for k in 0..k0 {
+            p.update(k as f64 / 100.0).unwrap();
+        }
+        p.request(WalkRequest::Steps(2));
+        let mut live = Vec::new();
+        for k in k0.. {
+            let s = p.update(k as f64 / 100.0).unwrap();
+            if s.phase == PhaseKind::Idle {
+                break;
+            }
+            live.push((s.phase, s.step_index));
+        }
+        assert_eq!(live, offline, "walk started at tick {k0}");
+    }
+}
