@@ -146,4 +146,14 @@ pub enum IkError {
         /// The value.
         value: f64,
     },
+    /// A numeric argument out of its range.
+    #[error("{name} = {value}: {why}")]
+    BadParameter {
+        /// The argument.
+        name: &'static str,
+        /// The value given.
+        value: f64,
+        /// What it must be.
+        why: &'static str,
+    },
 }

@@ -4,6 +4,7 @@ use std::collections::{HashMap, HashSet};
 use std::fmt;
 
 use crate::backend::{Backend, BackendError, Lifecycle, Reading};
+use crate::compensation::SagCompensation;
 use crate::limits::JointSpec;
 
 /// What to do when commands stop coming.
@@ -86,6 +87,8 @@ pub enum Event {
     Resumed,
     /// The backend failed; it was deactivated (torque off).
     BackendFailed(BackendError),
+    /// Sag compensation could not be computed; the uncompensated output was written.
+    CompensationFailed(String),
 }
 
 impl fmt::Display for Event {
@@ -125,6 +128,9 @@ impl fmt::Display for Event {
             },
             Event::Resumed => write!(f, "joint commands resumed"),
             Event::BackendFailed(e) => write!(f, "backend failed, torque off: {e}"),
+            Event::CompensationFailed(why) => {
+                write!(f, "sag compensation skipped this tick: {why}")
+            }
         }
     }
 }
@@ -157,6 +163,9 @@ pub struct JointBridge<B: Backend> {
     last_tick_s: Option<f64>,
     tripped: bool,
     reported_unknown: HashSet<String>,
+    compensation: Option<SagCompensation>,
+    /// What was last sent: the output, compensated and clamped.
+    written: Vec<f64>,
 }
 
 impl<B: Backend> JointBridge<B> {
@@ -173,6 +182,7 @@ impl<B: Backend> JointBridge<B> {
             index,
             config,
             target: zeros.clone(),
+            written: zeros.clone(),
             output: zeros,
             joints,
             state: Lifecycle::Unconfigured,
@@ -180,7 +190,26 @@ impl<B: Backend> JointBridge<B> {
             last_tick_s: None,
             tripped: false,
             reported_unknown: HashSet::new(),
+            compensation: None,
         }
+    }
+
+    /// Adds servo-sag compensation (see [`SagCompensation`]): what is written is the output
+    /// plus the static torque of its pose over the servos' stiffness, within the URDF limits.
+    pub fn with_sag_compensation(mut self, compensation: SagCompensation) -> Self {
+        self.compensation = Some(compensation);
+        self
+    }
+
+    /// The positions last written to the backend (rad): the velocity-limited output plus
+    /// the sag compensation, within the limits.
+    pub fn written_rad(&self) -> &[f64] {
+        &self.written
+    }
+
+    /// The velocity-limited output the bridge is holding (rad), before compensation.
+    pub fn output_rad(&self) -> &[f64] {
+        &self.output
     }
 
     /// Configures and activates the backend. The output starts at the measured pose where
@@ -321,7 +350,17 @@ impl<B: Backend> JointBridge<B> {
                 };
                 *out += (target - *out).clamp(-step, step);
             }
-            if let Err(e) = self.backend.write(t_s, &self.output) {
+            self.written.copy_from_slice(&self.output);
+            if let Some(c) = &mut self.compensation {
+                if let Err(why) = c.add_to(&self.output, &mut self.written) {
+                    self.written.copy_from_slice(&self.output);
+                    events.push(Event::CompensationFailed(why));
+                }
+                for (w, spec) in self.written.iter_mut().zip(&self.joints) {
+                    *w = spec.clamp(*w);
+                }
+            }
+            if let Err(e) = self.backend.write(t_s, &self.written) {
                 let _ = self.backend.deactivate();
                 self.state = Lifecycle::Error;
                 events.push(Event::BackendFailed(e.clone()));

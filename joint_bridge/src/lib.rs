@@ -5,7 +5,9 @@
 //! refuses non-finite values and unknown joints by name, clamps to the URDF limits and feeds
 //! the watchdog. [`JointBridge::tick`] runs at the bridge's rate with the time passed in: it
 //! trips the watchdog when commands stop (hold the pose, or go limp), moves the output toward
-//! the target no faster than each joint's velocity limit, writes it to the [`Backend`] and
+//! the target no faster than each joint's velocity limit, optionally aims each servo beyond
+//! it by the sag of the pose's static torque ([`SagCompensation`]), writes it to the
+//! [`Backend`] and
 //! reads the joint states back. Everything the bridge notices comes back as [`Event`]s for the
 //! node to log.
 //!
@@ -13,10 +15,12 @@
 
 mod backend;
 mod bridge;
+mod compensation;
 mod limits;
 mod mock;
 
 pub use backend::{Backend, BackendError, Lifecycle, Reading};
 pub use bridge::{BridgeConfig, Event, JointBridge, TimeoutAction};
+pub use compensation::{CompensationError, SagCompensation};
 pub use limits::JointSpec;
 pub use mock::MockBackend;

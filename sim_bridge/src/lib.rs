@@ -30,11 +30,11 @@ mod walk;
 
 pub use backend::SimBackend;
 pub use compensation::{
-    FootLoad, GRAVITY_M_S2, compensated_targets_rad, static_compensation_rad, static_foot_loads,
-    static_torques_nm,
+    compensated_targets_rad, static_compensation_rad, static_foot_loads, static_torques_nm,
 };
 pub use config::SimConfig;
 pub use error::SimError;
+pub use ik_solver::{FootLoad, GRAVITY_M_S2};
 pub use sim::{
     BODY_CONTACT_FRACTION, COP_MIN_FRACTION, ContactReading, Fall, FallReason, LOADED_FRACTION, Sim,
 };
