@@ -1,10 +1,15 @@
 //! `biped launch`: the fleet as separate processes, supervised.
 //!
 //! Starts `gait_planner`, `ik_solver` and `joint_bridge` (the node binaries beside this
-//! one), each with `--ros-args` for the namespace, the parameter file and the robot, and its
-//! output in a log file. Runs until Ctrl-C or SIGTERM, or until a node exits on its own;
-//! then asks every node to stop (SIGINT, as `ros2 launch` does), waits, and kills what is
-//! left. Nodes also stop by themselves if the launcher disappears, so none is orphaned.
+//! one), and with `--backend sim` also `sim_bridge` (MuJoCo), each with `--ros-args` for the
+//! namespace, the parameter files and the robot, and its output in a log file. Runs until
+//! Ctrl-C or SIGTERM, or until a node exits on its own; then asks every node to stop
+//! (SIGINT, as `ros2 launch` does), waits, and kills what is left. Nodes also stop by
+//! themselves if the launcher disappears, so none is orphaned.
+//!
+//! With the simulator every node runs on simulated time (`use_sim_time`), the simulator in
+//! lockstep with the joint bridge; the defaults are `config/sim.yaml` (built in), which a
+//! `--params` file overrides.
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -16,25 +21,59 @@ use anyhow::Context;
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 
+/// The simulator's defaults as a ROS 2 parameter file (config/sim.yaml).
+pub const SIM_PARAMS_YAML: &str = include_str!("../config/sim.yaml");
+
 /// What to launch.
 #[derive(Debug, Clone)]
 pub struct LaunchOptions {
-    /// `mock` (more backends come with the simulator and serial boards).
+    /// Joint bridge backend: `mock` or `sim`.
     pub backend: String,
     /// Robot URDF, or the built-in robot.
     pub robot: Option<PathBuf>,
-    /// ROS 2 parameter file for every node.
+    /// ROS 2 parameter file for every node (after the built-in defaults).
     pub params: Option<PathBuf>,
     /// Namespace of every node.
     pub namespace: String,
     /// Folder for the nodes' logs.
     pub log_dir: PathBuf,
+    /// Extra `-p name:=value` per node: `(node, assignment)`.
+    pub node_params: Vec<(String, String)>,
+    /// Extra environment variables of the nodes.
+    pub env: Vec<(String, String)>,
+}
+
+impl LaunchOptions {
+    /// The nodes of this launch, in start order: the simulator last, so that a walk command
+    /// sent before it starts is taken on simulated time.
+    pub fn nodes(&self) -> Vec<&'static str> {
+        let mut n = vec!["joint_bridge", "ik_solver", "gait_planner"];
+        if self.backend == "sim" {
+            n.push("sim_bridge");
+        }
+        n
+    }
 }
 
 struct Running {
     name: &'static str,
     child: Child,
     log: PathBuf,
+}
+
+/// A running fleet: stopped (SIGINT, then killed after 5 s) when dropped.
+pub struct Fleet {
+    running: Vec<Running>,
+    options: LaunchOptions,
+    defaults_file: Option<PathBuf>,
+}
+
+impl std::fmt::Debug for Fleet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Fleet")
+            .field("nodes", &self.running.iter().map(|r| r.name).collect::<Vec<_>>())
+            .finish()
+    }
 }
 
 fn node_binary(name: &str) -> anyhow::Result<PathBuf> {
@@ -51,72 +90,80 @@ fn node_binary(name: &str) -> anyhow::Result<PathBuf> {
     }
 }
 
-fn ros_args(o: &LaunchOptions, node: &str) -> anyhow::Result<Vec<String>> {
-    let mut args = vec![
-        "--ros-args".to_string(),
-        "-r".into(),
-        format!("__ns:={}", o.namespace),
-    ];
-    if let Some(p) = &o.params {
-        args.push("--params-file".into());
-        args.push(absolute(p)?.display().to_string());
-    }
-    if let Some(r) = &o.robot {
-        args.push("-p".into());
-        args.push(format!(
-            "robot_description_file:={}",
-            absolute(r)?.display()
-        ));
-    }
-    if node == "joint_bridge" {
-        args.push("-p".into());
-        args.push(format!("backend:={}", o.backend));
-    }
-    Ok(args)
-}
-
 fn absolute(p: &Path) -> anyhow::Result<PathBuf> {
     std::fs::canonicalize(p).with_context(|| format!("{} not found", p.display()))
 }
 
-fn interrupt(children: &mut [Running], signal: Signal) {
-    for r in children.iter_mut() {
-        if matches!(r.child.try_wait(), Ok(None))
-            && let Ok(pid) = i32::try_from(r.child.id())
-        {
-            let _ = kill(Pid::from_raw(pid), signal);
+impl Fleet {
+    /// Checks the options and prepares the log folder; starts nothing yet.
+    pub fn new(options: LaunchOptions) -> anyhow::Result<Self> {
+        if !["mock", "sim"].contains(&options.backend.as_str()) {
+            anyhow::bail!(
+                "--backend {}: not available yet (mock or sim; the serial backend comes with its issue)",
+                options.backend
+            );
         }
+        if !options.namespace.starts_with('/') {
+            anyhow::bail!("--ns {}: a namespace starts with /", options.namespace);
+        }
+        std::fs::create_dir_all(&options.log_dir)
+            .with_context(|| format!("cannot create log folder {}", options.log_dir.display()))?;
+        let defaults_file = if options.backend == "sim" {
+            let p = options.log_dir.join("sim_defaults.yaml");
+            std::fs::write(&p, SIM_PARAMS_YAML)
+                .with_context(|| format!("cannot write {}", p.display()))?;
+            Some(absolute(&p)?)
+        } else {
+            None
+        };
+        Ok(Self {
+            running: Vec::new(),
+            options,
+            defaults_file,
+        })
     }
-}
 
-/// Runs the fleet until interrupted. Returns an error if a node failed.
-pub fn launch(o: &LaunchOptions) -> anyhow::Result<()> {
-    if o.backend != "mock" {
-        anyhow::bail!(
-            "--backend {}: not available yet (mock; the sim and serial backends come with their issues)",
-            o.backend
-        );
+    fn ros_args(&self, node: &str) -> anyhow::Result<Vec<String>> {
+        let o = &self.options;
+        let mut args = vec![
+            "--ros-args".to_string(),
+            "-r".into(),
+            format!("__ns:={}", o.namespace),
+        ];
+        for p in self.defaults_file.iter().chain(&o.params) {
+            args.push("--params-file".into());
+            args.push(absolute(p)?.display().to_string());
+        }
+        if let Some(r) = &o.robot {
+            args.push("-p".into());
+            args.push(format!(
+                "robot_description_file:={}",
+                absolute(r)?.display()
+            ));
+        }
+        if node == "joint_bridge" {
+            args.push("-p".into());
+            args.push(format!("backend:={}", o.backend));
+        }
+        for (n, assignment) in &o.node_params {
+            if n == node {
+                args.push("-p".into());
+                args.push(assignment.clone());
+            }
+        }
+        Ok(args)
     }
-    if !o.namespace.starts_with('/') {
-        anyhow::bail!("--ns {}: a namespace starts with /", o.namespace);
-    }
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let s = stop.clone();
-        ctrlc::set_handler(move || s.store(true, Ordering::SeqCst))
-            .context("cannot catch Ctrl-C")?;
-    }
-    std::fs::create_dir_all(&o.log_dir)
-        .with_context(|| format!("cannot create log folder {}", o.log_dir.display()))?;
-    let mut running: Vec<Running> = Vec::new();
-    for name in ["joint_bridge", "ik_solver", "gait_planner"] {
+
+    /// Starts one node.
+    pub fn spawn(&mut self, name: &'static str) -> anyhow::Result<()> {
         let bin = node_binary(name)?;
-        let log = o.log_dir.join(format!("{name}.log"));
-        let file = std::fs::File::create(&log)
-            .with_context(|| format!("cannot create {}", log.display()))?;
+        let log = self.options.log_dir.join(format!("{name}.log"));
+        let file =
+            std::fs::File::create(&log).with_context(|| format!("cannot create {}", log.display()))?;
         let err = file.try_clone()?;
         let child = Command::new(&bin)
-            .args(ros_args(o, name)?)
+            .args(self.ros_args(name)?)
+            .envs(self.options.env.iter().map(|(k, v)| (k, v)))
             .env(
                 biped_msgs::ros::LAUNCH_PARENT_ENV,
                 std::process::id().to_string(),
@@ -124,62 +171,100 @@ pub fn launch(o: &LaunchOptions) -> anyhow::Result<()> {
             .stdin(Stdio::null())
             .stdout(file)
             .stderr(err)
-            .spawn();
-        match child {
-            Ok(child) => {
-                println!(
-                    "started {name} (pid {}), log: {}",
-                    child.id(),
-                    log.display()
-                );
-                running.push(Running { name, child, log });
-            }
-            Err(e) => {
-                interrupt(&mut running, Signal::SIGINT);
-                anyhow::bail!("cannot start {}: {e}", bin.display());
-            }
-        }
+            .spawn()
+            .with_context(|| format!("cannot start {}", bin.display()))?;
+        println!(
+            "started {name} (pid {}), log: {}",
+            child.id(),
+            log.display()
+        );
+        self.running.push(Running { name, child, log });
+        Ok(())
     }
-    println!("fleet running in namespace {}; Ctrl-C to stop", o.namespace);
 
-    let mut failed: Option<String> = None;
-    while !stop.load(Ordering::SeqCst) && failed.is_none() {
-        std::thread::sleep(Duration::from_millis(100));
-        for r in &mut running {
+    /// Starts every node of the options, in order.
+    pub fn spawn_all(&mut self) -> anyhow::Result<()> {
+        for name in self.options.nodes() {
+            self.spawn(name)?;
+        }
+        Ok(())
+    }
+
+    /// The first node that exited, with its status and log.
+    pub fn failed(&mut self) -> Option<String> {
+        for r in &mut self.running {
             if let Ok(Some(status)) = r.child.try_wait() {
-                failed = Some(format!(
+                return Some(format!(
                     "{} exited ({status}); see {}",
                     r.name,
                     r.log.display()
                 ));
             }
         }
+        None
+    }
+
+    /// Asks every node to stop (SIGINT), waits up to 5 s, kills what is left.
+    pub fn stop(&mut self, verbose: bool) {
+        for r in &mut self.running {
+            if matches!(r.child.try_wait(), Ok(None))
+                && let Ok(pid) = i32::try_from(r.child.id())
+            {
+                let _ = kill(Pid::from_raw(pid), Signal::SIGINT);
+            }
+        }
+        let deadline = Instant::now() + Duration::from_secs(5);
+        for r in self.running.drain(..).collect::<Vec<_>>().iter_mut() {
+            loop {
+                match r.child.try_wait() {
+                    Ok(Some(status)) => {
+                        if verbose {
+                            println!("{} stopped ({status})", r.name);
+                        }
+                        break;
+                    }
+                    Ok(None) if Instant::now() < deadline => {
+                        std::thread::sleep(Duration::from_millis(50))
+                    }
+                    _ => {
+                        eprintln!("{} did not stop within 5 s: killed", r.name);
+                        let _ = r.child.kill();
+                        let _ = r.child.wait();
+                        break;
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Drop for Fleet {
+    fn drop(&mut self) {
+        self.stop(false);
+    }
+}
+
+/// Runs the fleet until interrupted. Returns an error if a node failed.
+pub fn launch(o: &LaunchOptions) -> anyhow::Result<()> {
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let s = stop.clone();
+        ctrlc::set_handler(move || s.store(true, Ordering::SeqCst))
+            .context("cannot catch Ctrl-C")?;
+    }
+    let mut fleet = Fleet::new(o.clone())?;
+    fleet.spawn_all()?;
+    println!("fleet running in namespace {}; Ctrl-C to stop", o.namespace);
+    let mut failed: Option<String> = None;
+    while !stop.load(Ordering::SeqCst) && failed.is_none() {
+        std::thread::sleep(Duration::from_millis(100));
+        failed = fleet.failed();
     }
     match &failed {
         Some(why) => eprintln!("biped launch: {why}; stopping the other nodes"),
         None => println!("stopping the fleet"),
     }
-    interrupt(&mut running, Signal::SIGINT);
-    let deadline = Instant::now() + Duration::from_secs(5);
-    for r in &mut running {
-        loop {
-            match r.child.try_wait() {
-                Ok(Some(status)) => {
-                    println!("{} stopped ({status})", r.name);
-                    break;
-                }
-                Ok(None) if Instant::now() < deadline => {
-                    std::thread::sleep(Duration::from_millis(50))
-                }
-                _ => {
-                    eprintln!("{} did not stop within 5 s: killed", r.name);
-                    let _ = r.child.kill();
-                    let _ = r.child.wait();
-                    break;
-                }
-            }
-        }
-    }
+    fleet.stop(true);
     match failed {
         Some(why) => anyhow::bail!(why),
         None => Ok(()),

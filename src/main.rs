@@ -1,9 +1,10 @@
-//! `biped`: the commands users run. `biped plan` plans a walk offline; the ROS 2 fleet
-//! (`biped launch`) and the simulated walk (`biped walk`) join as they land.
+//! `biped`: the commands users run. `biped walk` walks the robot in MuJoCo with the ROS 2
+//! fleet and measures it; `biped launch` runs the fleet; `biped plan` plans a walk offline.
 
 mod launch;
 mod plan;
 mod plots;
+mod walk;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -60,6 +61,30 @@ enum Command {
         /// Folder for the nodes' log files.
         #[arg(long, value_name = "DIR", default_value = "out/launch")]
         log_dir: PathBuf,
+    },
+    /// Walk the robot in MuJoCo: the ROS 2 fleet and the simulator in lockstep on simulated
+    /// time (DDS on this host unless ROS_AUTOMATIC_DISCOVERY_RANGE says otherwise); writes
+    /// report.json and pictures. Exits non-zero if the robot fell.
+    Walk {
+        /// Number of steps (swings before the closing half step).
+        #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+        steps: u32,
+        /// Robot URDF. Default: the built-in robot.
+        #[arg(long, value_name = "URDF")]
+        robot: Option<PathBuf>,
+        /// ROS 2 parameter file for every node (gait_planner, sim_bridge, joint_bridge
+        /// sections; over the built-in config/sim.yaml).
+        #[arg(long, value_name = "YAML")]
+        params: Option<PathBuf>,
+        /// Output folder: report.json, pictures, logs/.
+        #[arg(long, value_name = "DIR", default_value = "out/walk")]
+        out: PathBuf,
+        /// Pace the simulation at real time (default: as fast as the fleet answers).
+        #[arg(long)]
+        real_time: bool,
+        /// Simulated seconds the robot stands before the walk starts.
+        #[arg(long, default_value_t = 1.0)]
+        settle: f64,
     },
     /// Plan a walk offline; write it as CSV (one row per control tick) and pictures.
     Plan {
@@ -121,7 +146,57 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             params,
             namespace: ns,
             log_dir,
+            node_params: Vec::new(),
+            env: Vec::new(),
         }),
+        Command::Walk {
+            steps,
+            robot,
+            params,
+            out,
+            real_time,
+            settle,
+        } => {
+            if !(settle.is_finite() && (0.0..=60.0).contains(&settle)) {
+                anyhow::bail!("--settle {settle}: must be within [0, 60] s");
+            }
+            let outcome = walk::walk(&walk::WalkOptions {
+                steps,
+                robot,
+                params,
+                out,
+                real_time,
+                settle_s: settle,
+                tail_s: 2.0,
+                stall_s: 30.0,
+            })?;
+            let r = &outcome.report;
+            let m = &r.measured;
+            println!(
+                "walked {:.3} m of {:.3} m planned in {:.2} s ({:.3} m/s); max tilt {:.2}°, heading drift {:.2}°, foot slip {:.1} mm, CoP inside {:.1}%; {:.1}x real time",
+                m.distance_m,
+                m.planned_distance_m,
+                r.walk_duration_s,
+                r.speed_m_s,
+                m.max_tilt_deg,
+                m.heading_drift_deg,
+                m.max_foot_slip_m * 1e3,
+                m.cop_inside_fraction * 100.0,
+                r.real_time_factor
+            );
+            for f in &outcome.files {
+                println!("wrote {}", f.display());
+            }
+            if let Some(f) = &m.fell {
+                anyhow::bail!(
+                    "the robot fell at {:.2} s into the walk, in phase {}: {}",
+                    f.t_s,
+                    f.phase,
+                    f.reason
+                );
+            }
+            Ok(())
+        }
         Command::Plan {
             steps,
             robot,

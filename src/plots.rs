@@ -31,37 +31,37 @@ use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
+pub(crate) type Area<'a> = DrawingArea<SVGBackend<'a>, Shift>;
 
 /// Colour of everything about the left leg.
-const LEFT_COLOUR: RGBColor = RGBColor(31, 119, 180);
+pub(crate) const LEFT_COLOUR: RGBColor = RGBColor(31, 119, 180);
 /// Colour of everything about the right leg.
-const RIGHT_COLOUR: RGBColor = RGBColor(214, 39, 40);
+pub(crate) const RIGHT_COLOUR: RGBColor = RGBColor(214, 39, 40);
 /// The CoM floor path.
-const COM_COLOUR: RGBColor = RGBColor(20, 20, 20);
+pub(crate) const COM_COLOUR: RGBColor = RGBColor(20, 20, 20);
 /// The pelvis path.
-const BASE_COLOUR: RGBColor = RGBColor(148, 103, 189);
+pub(crate) const BASE_COLOUR: RGBColor = RGBColor(148, 103, 189);
 /// Start marker.
-const START_COLOUR: RGBColor = RGBColor(44, 160, 44);
+pub(crate) const START_COLOUR: RGBColor = RGBColor(44, 160, 44);
 /// The closed-form swing curve.
 const FORMULA_COLOUR: RGBColor = RGBColor(20, 20, 20);
 
 /// Height of the title block of every picture (px).
-const TITLE_H_PX: u32 = 64;
+pub(crate) const TITLE_H_PX: u32 = 64;
 /// Width of the legend column on the right of every picture (px).
-const LEGEND_W_PX: u32 = 260;
+pub(crate) const LEGEND_W_PX: u32 = 260;
 /// Space around a chart (px).
-const MARGIN_PX: u32 = 16;
+pub(crate) const MARGIN_PX: u32 = 16;
 /// Space for the y tick labels and axis name (px).
-const Y_LABELS_PX: u32 = 90;
+pub(crate) const Y_LABELS_PX: u32 = 90;
 /// Space for the x tick labels and axis name (px).
-const X_LABELS_PX: u32 = 60;
+pub(crate) const X_LABELS_PX: u32 = 60;
 /// Tick label font size (plotters size; the SVG font size is this / 1.24).
-const TICK_FONT: f64 = 17.0;
+pub(crate) const TICK_FONT: f64 = 17.0;
 /// Axis name font size.
-const AXIS_FONT: f64 = 19.0;
+pub(crate) const AXIS_FONT: f64 = 19.0;
 /// Legend and caption font size.
-const LEGEND_FONT: f64 = 18.0;
+pub(crate) const LEGEND_FONT: f64 = 18.0;
 /// Floating-point slack for "the foot is on the floor" (m).
 const ON_FLOOR_TOL_M: f64 = 1e-9;
 
@@ -101,17 +101,17 @@ pub fn write_plots(
 
 /// A footprint: where a foot stood on the floor.
 #[derive(Debug, Clone, PartialEq)]
-struct Footprint {
-    side: Side,
+pub(crate) struct Footprint {
+    pub(crate) side: Side,
     /// Sole corners on the floor (m).
-    corners_m: [[f64; 2]; 4],
+    pub(crate) corners_m: [[f64; 2]; 4],
     /// The swing that put the foot there (0: the initial stance).
-    step_index: u32,
+    pub(crate) step_index: u32,
 }
 
 /// Every distinct place where a foot stood on the floor (ankle at its initial height), in
 /// the order the feet got there.
-fn planted_footprints(planner: &GaitPlanner, samples: &[GaitSample]) -> Vec<Footprint> {
+pub(crate) fn planted_footprints(planner: &GaitPlanner, samples: &[GaitSample]) -> Vec<Footprint> {
     let Some(first) = samples.first() else {
         return Vec::new();
     };
@@ -161,7 +161,7 @@ fn footprint_label(f: &Footprint) -> (String, (f64, f64), VPos, i32) {
     (name, (x_m, outer_y_m), v_pos, dy_px)
 }
 
-fn side_colour(side: Side) -> RGBColor {
+pub(crate) fn side_colour(side: Side) -> RGBColor {
     match side {
         Side::Left => LEFT_COLOUR,
         Side::Right => RIGHT_COLOUR,
@@ -552,7 +552,7 @@ fn phase_spans(samples: &[GaitSample]) -> Vec<PhaseSpan> {
 }
 
 /// Background of a phase in the phase strip.
-fn phase_colour(kind: PhaseKind) -> RGBColor {
+pub(crate) fn phase_colour(kind: PhaseKind) -> RGBColor {
     match kind {
         PhaseKind::Idle => RGBColor(235, 235, 235),
         PhaseKind::Crouch | PhaseKind::Rise => RGBColor(220, 220, 220),
@@ -813,7 +813,7 @@ fn draw_joint_panel(
 // Shared pieces.
 
 /// Renders a picture to SVG text.
-fn render(
+pub(crate) fn render(
     size_px: (u32, u32),
     draw: impl FnOnce(&Area<'_>) -> anyhow::Result<()>,
 ) -> anyhow::Result<String> {
@@ -827,12 +827,12 @@ fn render(
     Ok(svg)
 }
 
-fn text_style(size: f64) -> TextStyle<'static> {
+pub(crate) fn text_style(size: f64) -> TextStyle<'static> {
     TextStyle::from(("sans-serif", size).into_font()).color(&BLACK)
 }
 
 /// A bold title and a grey subtitle, centred.
-fn draw_title(area: &Area<'_>, title: &str, subtitle: &str) -> anyhow::Result<()> {
+pub(crate) fn draw_title(area: &Area<'_>, title: &str, subtitle: &str) -> anyhow::Result<()> {
     let (w, _) = area.dim_in_pixel();
     let centre = Pos::new(HPos::Center, VPos::Center);
     let bold = TextStyle::from(("sans-serif", 27.0).into_font().style(FontStyle::Bold))
@@ -850,7 +850,7 @@ fn draw_title(area: &Area<'_>, title: &str, subtitle: &str) -> anyhow::Result<()
 
 /// What a legend entry shows next to its label.
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Swatch {
+pub(crate) enum Swatch {
     /// Nothing: an empty row.
     None,
     /// A lightly filled, outlined box.
@@ -868,13 +868,13 @@ enum Swatch {
 }
 
 #[derive(Debug, Clone, PartialEq)]
-struct LegendEntry {
+pub(crate) struct LegendEntry {
     swatch: Swatch,
     label: String,
 }
 
 impl LegendEntry {
-    fn new(swatch: Swatch, label: impl Into<String>) -> Self {
+    pub(crate) fn new(swatch: Swatch, label: impl Into<String>) -> Self {
         Self {
             swatch,
             label: label.into(),
@@ -883,7 +883,7 @@ impl LegendEntry {
 }
 
 /// A boxed legend at the top of `area` (pixel coordinates).
-fn draw_legend(area: &Area<'_>, entries: &[LegendEntry]) -> anyhow::Result<()> {
+pub(crate) fn draw_legend(area: &Area<'_>, entries: &[LegendEntry]) -> anyhow::Result<()> {
     const ROW_PX: i32 = 30;
     const X0_PX: i32 = 14;
     const SWATCH_W_PX: i32 = 36;
@@ -946,14 +946,14 @@ fn draw_legend(area: &Area<'_>, entries: &[LegendEntry]) -> anyhow::Result<()> {
 
 /// A rectangle of the data plane shown by a chart.
 #[derive(Debug, Clone, PartialEq)]
-struct Window {
-    x: Range<f64>,
-    y: Range<f64>,
+pub(crate) struct Window {
+    pub(crate) x: Range<f64>,
+    pub(crate) y: Range<f64>,
 }
 
 impl Window {
     /// The smallest window holding all finite points; `None` if there are none.
-    fn around(points: impl IntoIterator<Item = (f64, f64)>) -> Option<Self> {
+    pub(crate) fn around(points: impl IntoIterator<Item = (f64, f64)>) -> Option<Self> {
         let mut w: Option<Self> = None;
         for (x, y) in points
             .into_iter()
@@ -971,7 +971,7 @@ impl Window {
     }
 
     /// The window grown by `pad` on every side.
-    fn padded(self, pad: f64) -> Self {
+    pub(crate) fn padded(self, pad: f64) -> Self {
         Self {
             x: self.x.start - pad..self.x.end + pad,
             y: self.y.start - pad..self.y.end + pad,
@@ -981,7 +981,7 @@ impl Window {
     /// The window grown about its centre so that, drawn `plot_w_px` wide, a data unit is as
     /// long along y as along x; with the plot height (px) that needs, kept within
     /// `plot_h_px` by widening the x range when the data are too tall.
-    fn with_equal_scale(self, plot_w_px: u32, plot_h_px: Range<u32>) -> (Self, u32) {
+    pub(crate) fn with_equal_scale(self, plot_w_px: u32, plot_h_px: Range<u32>) -> (Self, u32) {
         let (xs, ys) = (self.x.end - self.x.start, self.y.end - self.y.start);
         let w = f64::from(plot_w_px.max(1));
         let h = (ys / xs * w)

@@ -16,7 +16,7 @@
 //! - trailing bytes: rclpy's `serialize_message` returns as many bytes as rmw_fastrtps_cpp
 //!   estimated, not as many as Fast-CDR wrote, and the rest is never written. For a
 //!   fixed-size type (no string or sequence anywhere) the estimate is the size rounded up
-//!   to a multiple of 4 (WalkCommand: 29 -> 32 bytes); otherwise it counts alignment for
+//!   to a multiple of 4 (a type ending in a `bool`: 29 -> 32 bytes); otherwise it counts alignment for
 //!   the elements of every sequence of primitives even when the sequence is empty
 //!   (JointState with empty `velocity` or `effort`: up to 4 more bytes for each).
 //!   msg_check.py works that length out ("rmw_size") and the test holds rclpy to it; ours
@@ -32,8 +32,8 @@ use std::process::{Command, Stdio};
 
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{
-    AnkleTargets, Clock, GaitPhase, Header, JointState, Point, PointStamped, Pose, PoseStamped,
-    Quaternion, StringMsg, Time, Twist, Vector3, WalkCommand,
+    AnkleTargets, Clock, GaitPhase, Header, JointState, Point, Point32, PointStamped, Polygon,
+    PolygonStamped, Pose, PoseStamped, Quaternion, StringMsg, Time, Twist, Vector3, WalkCommand,
 };
 use ros2_client::dds::rustdds;
 use rustdds::no_key::{DeserializerAdapter, SerializerAdapter};
@@ -158,6 +158,9 @@ fn registry() -> Vec<Entry> {
         Pose,
         PoseStamped,
         PointStamped,
+        Point32,
+        Polygon,
+        PolygonStamped,
         Twist,
         JointState,
         Clock,

@@ -28,7 +28,30 @@ pub enum PhaseKind {
     Rise,
 }
 
+impl std::str::FromStr for PhaseKind {
+    type Err = String;
+    /// Parses the snake_case name (as `gait/phase` carries it).
+    fn from_str(s: &str) -> Result<Self, String> {
+        PhaseKind::ALL
+            .into_iter()
+            .find(|k| k.as_str() == s)
+            .ok_or_else(|| format!("`{s}` is not a gait phase"))
+    }
+}
+
 impl PhaseKind {
+    /// Every phase kind, in walk order.
+    pub const ALL: [PhaseKind; 8] = [
+        PhaseKind::Idle,
+        PhaseKind::Crouch,
+        PhaseKind::Shift,
+        PhaseKind::HalfStep,
+        PhaseKind::Step,
+        PhaseKind::FinalHalfStep,
+        PhaseKind::Center,
+        PhaseKind::Rise,
+    ];
+
     /// snake_case name.
     pub fn as_str(self) -> &'static str {
         match self {

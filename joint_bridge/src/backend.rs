@@ -85,3 +85,25 @@ pub trait Backend: Send {
     /// Torque off. Must be safe to call in any state and more than once.
     fn deactivate(&mut self) -> Result<(), BackendError>;
 }
+
+/// A boxed backend is a backend, so a node can pick one at run time.
+impl<B: Backend + ?Sized> Backend for Box<B> {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+    fn configure(&mut self, joints: &[JointSpec]) -> Result<Option<Vec<f64>>, BackendError> {
+        (**self).configure(joints)
+    }
+    fn activate(&mut self) -> Result<(), BackendError> {
+        (**self).activate()
+    }
+    fn write(&mut self, t_s: f64, positions_rad: &[f64]) -> Result<(), BackendError> {
+        (**self).write(t_s, positions_rad)
+    }
+    fn read(&mut self, t_s: f64) -> Result<Reading, BackendError> {
+        (**self).read(t_s)
+    }
+    fn deactivate(&mut self) -> Result<(), BackendError> {
+        (**self).deactivate()
+    }
+}

@@ -205,6 +205,51 @@ ros_message!(
     ]
 );
 
+/// geometry_msgs/msg/Point32: a point in single precision (polygon vertices).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Point32 {
+    /// x (m).
+    pub x: f32,
+    /// y (m).
+    pub y: f32,
+    /// z (m).
+    pub z: f32,
+}
+ros_message!(
+    Point32,
+    "geometry_msgs",
+    [("x", "float"), ("y", "float"), ("z", "float")]
+);
+
+/// geometry_msgs/msg/Polygon.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Polygon {
+    /// The vertices, in order.
+    pub points: Vec<Point32>,
+}
+ros_message!(
+    Polygon,
+    "geometry_msgs",
+    [("points", "sequence<geometry_msgs/Point32>")]
+);
+
+/// geometry_msgs/msg/PolygonStamped.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PolygonStamped {
+    /// Stamp and frame.
+    pub header: Header,
+    /// The polygon.
+    pub polygon: Polygon,
+}
+ros_message!(
+    PolygonStamped,
+    "geometry_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("polygon", "geometry_msgs/Polygon")
+    ]
+);
+
 /// geometry_msgs/msg/Twist.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Twist {
@@ -339,6 +384,9 @@ pub struct WalkCommand {
     pub step_duration: f64,
     /// Stop at the next point where the feet can come together (other fields ignored).
     pub stop: bool,
+    /// Take the command at the first control tick at or after this ROS time (simulated
+    /// time under `use_sim_time`); zero: at once.
+    pub start_time: Time,
 }
 ros_message!(
     WalkCommand,
@@ -347,6 +395,7 @@ ros_message!(
         ("steps", "uint32"),
         ("step_length", "double"),
         ("step_duration", "double"),
-        ("stop", "boolean")
+        ("stop", "boolean"),
+        ("start_time", "builtin_interfaces/Time")
     ]
 );

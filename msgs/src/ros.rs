@@ -328,6 +328,12 @@ pub fn ros_environment_from(
 /// traffic stays on 127.0.0.1.
 pub fn context_from_env() -> Result<Context, RosError> {
     let (domain, range) = ros_environment()?;
+    context_for(domain, range)
+}
+
+/// A DDS context for a domain and discovery range. With LOCALHOST, DDS traffic stays on
+/// 127.0.0.1.
+pub fn context_for(domain: u16, range: DiscoveryRange) -> Result<Context, RosError> {
     let dds = |what: &str, e: &dyn std::fmt::Display| RosError::Dds {
         what: what.into(),
         message: e.to_string(),
@@ -659,6 +665,124 @@ impl Ticker {
         }
         self.k += 1;
         self.k - 1
+    }
+}
+
+/// One control tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tick {
+    /// Tick index: the tick is due at k / rate (s) on the node's time line.
+    pub k: u64,
+    /// The simulated time of the tick, under `use_sim_time` (the `/clock` value it came
+    /// from); `None` on the monotonic clock.
+    pub sim_time: Option<crate::msg::Time>,
+    /// The same `/clock` value again: the simulator, in lockstep, asks for this tick's
+    /// output once more (a peer may have joined late). Republish, do not step.
+    pub repeat: bool,
+}
+
+/// Where a node's control ticks come from: the monotonic clock, or `/clock` under
+/// `use_sim_time`. On simulated time, tick k is the first `/clock` value at or after k / rate
+/// (with the simulator publishing at the control rate, every `/clock` message is a tick), so
+/// a node stepped by a lockstep simulator computes exactly what it would in real time.
+pub enum TickSource {
+    /// Monotonic clock.
+    Wall(Ticker),
+    /// `/clock` messages.
+    Sim {
+        /// The `/clock` subscription.
+        clock: ros2_client::Subscription<crate::msg::Clock>,
+        /// Tick period (ns).
+        period_ns: i64,
+        /// The last tick's index and `/clock` value (ns).
+        last: Option<(u64, i64)>,
+    },
+}
+
+impl std::fmt::Debug for TickSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TickSource::Wall(t) => f.debug_tuple("Wall").field(t).finish(),
+            TickSource::Sim {
+                period_ns, last, ..
+            } => f
+                .debug_struct("Sim")
+                .field("period_ns", period_ns)
+                .field("last", last)
+                .finish(),
+        }
+    }
+}
+
+impl TickSource {
+    /// Ticks at `rate_hz`, from `/clock` when the node has `use_sim_time`.
+    pub fn new(ros: &mut RosNode, rate_hz: f64) -> Result<Self, RosError> {
+        if ros.setup.use_sim_time() {
+            Ok(TickSource::Sim {
+                clock: ros.subscription::<crate::msg::Clock>("/clock")?,
+                period_ns: (1e9 / rate_hz).round() as i64,
+                last: None,
+            })
+        } else {
+            Ok(TickSource::Wall(Ticker::new(rate_hz)))
+        }
+    }
+
+    /// True on simulated time.
+    pub fn simulated(&self) -> bool {
+        matches!(self, TickSource::Sim { .. })
+    }
+
+    /// Waits for the next tick. `None` after 100 ms without one (on simulated time, when
+    /// the clock stands still), so the caller can check for shutdown.
+    pub async fn next(&mut self) -> Option<Tick> {
+        match self {
+            TickSource::Wall(t) => Some(Tick {
+                k: t.next().await,
+                sim_time: None,
+                repeat: false,
+            }),
+            TickSource::Sim {
+                clock,
+                period_ns,
+                last,
+            } => {
+                use smol::future::FutureExt as _;
+                loop {
+                    let msg = async { Some(clock.async_take().await) }.or(async {
+                        smol::Timer::after(std::time::Duration::from_millis(100)).await;
+                        None
+                    });
+                    let Ok((msg, _)) = msg.await? else { continue };
+                    let ns = msg.clock.to_nanos();
+                    if ns < 0 {
+                        continue;
+                    }
+                    // Tick k is due at k·period; 1 µs of slack for clocks computed in floats.
+                    let k = ((ns + 1_000) / *period_ns) as u64;
+                    match *last {
+                        Some((last_k, last_ns)) if ns == last_ns => {
+                            return Some(Tick {
+                                k: last_k,
+                                sim_time: Some(msg.clock),
+                                repeat: true,
+                            });
+                        }
+                        // The clock went back (the simulation restarted): start over.
+                        Some((_, last_ns)) if ns < last_ns => *last = None,
+                        _ => {}
+                    }
+                    if last.is_none_or(|(last_k, _)| k > last_k) {
+                        *last = Some((k, ns));
+                        return Some(Tick {
+                            k,
+                            sim_time: Some(msg.clock),
+                            repeat: false,
+                        });
+                    }
+                }
+            }
+        }
     }
 }
 

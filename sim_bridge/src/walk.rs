@@ -194,7 +194,43 @@ fn wrap_pi(a: f64) -> f64 {
     }
 }
 
-/// Accumulates the walk measures, one physics step at a time.
+/// One measurement of the robot, from the simulator itself ([`Observation::of_sim`]) or
+/// from what a simulator publishes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observation {
+    /// Time (s).
+    pub t_s: f64,
+    /// Pose of the base in the world.
+    pub base: Isometry3<f64>,
+    /// Signed distance of the centre of pressure to the support polygon's edge (m), positive
+    /// inside; `None` when the floor does not carry the robot.
+    pub cop_margin_m: Option<f64>,
+    /// Each foot's position on the floor (world x, y, m), `[left, right]`.
+    pub feet_xy_m: [[f64; 2]; 2],
+    /// Whether each foot carries the robot, `[left, right]`.
+    pub standing: [bool; 2],
+    /// The first fall so far: time (s) and reason.
+    pub fall: Option<(f64, String)>,
+}
+
+impl Observation {
+    /// The simulator's present state; a foot stands when its sole carries more than
+    /// [`STANCE_FRACTION`] of the weight.
+    pub fn of_sim(sim: &Sim) -> Self {
+        let c = sim.contacts();
+        let feet = sim.foot_positions_m();
+        Self {
+            t_s: sim.time_s(),
+            base: sim.base_pose(),
+            cop_margin_m: c.cop_margin_m(),
+            feet_xy_m: feet.map(|f| [f.x, f.y]),
+            standing: c.sole_force_n.map(|f| f > STANCE_FRACTION * sim.weight_n()),
+            fall: sim.fallen().map(|f| (f.t_s, f.reason.to_string())),
+        }
+    }
+}
+
+/// Accumulates the walk measures, one observation at a time.
 #[derive(Debug, Clone)]
 pub struct WalkMonitor {
     start_base: Isometry3<f64>,
@@ -209,12 +245,22 @@ pub struct WalkMonitor {
     fell: Option<FallReport>,
 }
 
+fn tilt_rad(base: &Isometry3<f64>) -> f64 {
+    let z = base.rotation * Vector3::z();
+    z.z.clamp(-1.0, 1.0).acos()
+}
+
 impl WalkMonitor {
     /// Starts measuring from the simulator's present state.
     pub fn new(sim: &Sim) -> Self {
+        Self::starting_at(sim.time_s(), sim.base_pose())
+    }
+
+    /// Starts measuring at `t_s` with the base at `base`.
+    pub fn starting_at(t_s: f64, base: Isometry3<f64>) -> Self {
         Self {
-            start_base: sim.base_pose(),
-            start_t_s: sim.time_s(),
+            start_base: base,
+            start_t_s: t_s,
             max_tilt_rad: 0.0,
             max_heading_rad: 0.0,
             cop_samples: 0,
@@ -226,14 +272,17 @@ impl WalkMonitor {
         }
     }
 
-    /// Measures the present state, during `phase`.
+    /// Measures the simulator's present state, during `phase`.
     pub fn observe(&mut self, sim: &Sim, phase: PhaseKind) {
-        let base = sim.base_pose();
-        self.max_tilt_rad = self.max_tilt_rad.max(sim.base_tilt_rad());
-        let heading = wrap_pi(yaw(&base) - yaw(&self.start_base)).abs();
+        self.observe_state(&Observation::of_sim(sim), phase);
+    }
+
+    /// Takes one observation, made during `phase`.
+    pub fn observe_state(&mut self, o: &Observation, phase: PhaseKind) {
+        self.max_tilt_rad = self.max_tilt_rad.max(tilt_rad(&o.base));
+        let heading = wrap_pi(yaw(&o.base) - yaw(&self.start_base)).abs();
         self.max_heading_rad = self.max_heading_rad.max(heading);
-        let c = sim.contacts();
-        if let Some(margin) = c.cop_margin_m() {
+        if let Some(margin) = o.cop_margin_m {
             self.cop_samples += 1;
             if margin > 0.0 {
                 self.cop_inside += 1;
@@ -250,14 +299,12 @@ impl WalkMonitor {
                 }),
             }
         }
-        let feet = sim.foot_positions_m();
-        for ((foot, &force_n), start) in feet
+        for ((&p, &standing), start) in o
+            .feet_xy_m
             .iter()
-            .zip(&c.sole_force_n)
+            .zip(&o.standing)
             .zip(self.stance_start.iter_mut())
         {
-            let standing = force_n > STANCE_FRACTION * sim.weight_n();
-            let p = [foot.x, foot.y];
             match (standing, *start) {
                 (true, None) => *start = Some(p),
                 (true, Some(p0)) => {
@@ -268,24 +315,34 @@ impl WalkMonitor {
             }
         }
         if self.fell.is_none()
-            && let Some(f) = sim.fallen()
+            && let Some((t_s, reason)) = &o.fall
         {
             self.fell = Some(FallReport {
-                t_s: f.t_s - self.start_t_s,
+                t_s: t_s - self.start_t_s,
                 phase,
-                reason: f.reason.to_string(),
+                reason: reason.clone(),
             });
         }
     }
 
-    /// True once the simulator reported a fall.
+    /// True once a fall was observed.
     pub fn fell(&self) -> bool {
         self.fell.is_some()
     }
 
-    /// The measures so far; `planned_distance_m` is how far the plan moves the base.
+    /// The measures so far, ending at the simulator's present state; `planned_distance_m`
+    /// is how far the plan moves the base.
     pub fn report(&self, sim: &Sim, planned_distance_m: f64) -> WalkReport {
-        let base = sim.base_pose();
+        self.report_at(sim.time_s(), &sim.base_pose(), planned_distance_m)
+    }
+
+    /// The measures so far, ending at `t_s` with the base at `base`.
+    pub fn report_at(
+        &self,
+        t_s: f64,
+        base: &Isometry3<f64>,
+        planned_distance_m: f64,
+    ) -> WalkReport {
         let forward = self.start_base.rotation * Vector3::x();
         let moved = base.translation.vector - self.start_base.translation.vector;
         let forward_xy = Vector3::new(forward.x, forward.y, 0.0);
@@ -296,7 +353,7 @@ impl WalkMonitor {
         };
         WalkReport {
             fell: self.fell.clone(),
-            duration_s: sim.time_s() - self.start_t_s,
+            duration_s: t_s - self.start_t_s,
             max_tilt_deg: self.max_tilt_rad.to_degrees(),
             heading_drift_deg: self.max_heading_rad.to_degrees(),
             distance_m,

@@ -11,7 +11,11 @@
 //! naming the field and value; the walk in progress is unaffected.
 //!
 //! The planner is stepped with tick times k / control_rate_hz, not with the measured time, so
-//! a walk published here is tick for tick the walk `biped plan` writes.
+//! a walk published here is tick for tick the walk `biped plan` writes. Ticks come from the
+//! monotonic clock, or with `use_sim_time` from `/clock` (a repeated `/clock` value, which a
+//! lockstep simulator sends while it waits, republishes the tick's messages). A
+//! `walk_command` with a `start_time` is taken at the first tick at or after it; the same
+//! stamped command received again is taken once.
 
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -19,7 +23,7 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{AnkleTargets, GaitPhase, Header, Point, Twist, WalkCommand};
-use biped_msgs::ros::{self, NodeSetup, RosNode, Ticker};
+use biped_msgs::ros::{self, NodeSetup, RosNode, TickSource};
 use gait_planner::{GaitParams, GaitPlanner, GaitSample, PhaseKind, WalkRequest};
 use ik_solver::BipedModel;
 use ros2_client::ParameterValue;
@@ -222,6 +226,21 @@ fn to_msgs(
     )
 }
 
+fn publish(
+    ros: &RosNode,
+    targets_pub: &ros2_client::Publisher<AnkleTargets>,
+    targets: AnkleTargets,
+    phase_pub: &ros2_client::Publisher<GaitPhase>,
+    phase: GaitPhase,
+) {
+    if let Err(e) = targets_pub.publish(targets) {
+        ros.error(&format!("publish gait/ankle_targets: {e:?}"));
+    }
+    if let Err(e) = phase_pub.publish(phase) {
+        ros.error(&format!("publish gait/phase: {e:?}"));
+    }
+}
+
 fn run() -> anyhow::Result<()> {
     let setup = NodeSetup::from_env("gait_planner")?;
     if !setup.own_args.is_empty() {
@@ -291,6 +310,7 @@ fn run() -> anyhow::Result<()> {
     let targets_pub = ros.publisher::<AnkleTargets>("gait/ankle_targets")?;
     let cmd_vel = ros.subscription::<Twist>("cmd_vel")?;
     let walk_cmd = ros.subscription::<WalkCommand>("walk_command")?;
+    let mut ticks = TickSource::new(&mut ros, rate)?;
     let executor = ros.executor()?;
     let c = planner.config();
     ros.info(&format!(
@@ -305,10 +325,27 @@ fn run() -> anyhow::Result<()> {
         reported_turning: false,
     };
     let result: anyhow::Result<()> = smol::block_on(executor.run(async {
-        let mut ticker = Ticker::new(rate);
         let mut last_phase = None;
+        // Walk commands with a start time still ahead.
+        let mut pending: Vec<WalkCommand> = Vec::new();
+        let mut last_stamped: Option<WalkCommand> = None;
+        let mut last_sent: Option<(GaitPhase, AnkleTargets)> = None;
         while !stop.load(Ordering::SeqCst) {
-            let k = ticker.next().await;
+            let Some(tick) = ticks.next().await else {
+                continue;
+            };
+            if tick.repeat {
+                // The lockstep simulator asks again for this tick: same messages.
+                if let Some((phase, targets)) = &last_sent {
+                    publish(&ros, &targets_pub, targets.clone(), &phase_pub, phase.clone());
+                }
+                continue;
+            }
+            let k = tick.k;
+            let now: biped_msgs::msg::Time = match tick.sim_time {
+                Some(t) => t,
+                None => ros.node.time_now().into(),
+            };
             while let Ok(p) = rx.try_recv() {
                 match planner.set_params(p.clone()) {
                     Ok(()) => {
@@ -319,6 +356,22 @@ fn run() -> anyhow::Result<()> {
                 }
             }
             while let Ok(Some((msg, _))) = walk_cmd.take() {
+                // A stamped command sent again (a sender making sure it arrives) is the same
+                // command: take it once.
+                let repeat = msg.start_time.to_nanos() != 0 && last_stamped.as_ref() == Some(&msg);
+                if !repeat {
+                    if msg.start_time.to_nanos() != 0 {
+                        last_stamped = Some(msg.clone());
+                    }
+                    pending.push(msg);
+                }
+            }
+            // In arrival order, each at its start time (zero: now).
+            while let Some(i) = pending
+                .iter()
+                .position(|c| c.start_time.to_nanos() <= now.to_nanos())
+            {
+                let msg = pending.remove(i);
                 for w in commands.walk_command(&mut planner, &msg, &mut params) {
                     ros.warn(&w);
                 }
@@ -343,13 +396,9 @@ fn run() -> anyhow::Result<()> {
                 ));
                 last_phase = Some((sample.phase, sample.step_index));
             }
-            let (phase, targets) = to_msgs(&sample, ros.node.time_now().into(), &base_frame);
-            if let Err(e) = targets_pub.publish(targets) {
-                ros.error(&format!("publish gait/ankle_targets: {e:?}"));
-            }
-            if let Err(e) = phase_pub.publish(phase) {
-                ros.error(&format!("publish gait/phase: {e:?}"));
-            }
+            let (phase, targets) = to_msgs(&sample, now, &base_frame);
+            publish(&ros, &targets_pub, targets.clone(), &phase_pub, phase.clone());
+            last_sent = Some((phase, targets));
         }
         Ok(())
     }));

@@ -1,32 +1,51 @@
 //! The `joint_bridge` ROS 2 node: a thin wrapper over the joint_bridge library.
 //!
 //! Subscribes `joint_commands` (sensor_msgs/msg/JointState, positions by URDF joint name);
-//! drives the backend through the bridge (URDF limits, velocity limits, watchdog); publishes
-//! `joint_states` (sensor_msgs/msg/JointState, every driven joint) at `rate_hz`.
+//! drives the backend through the bridge (URDF limits, velocity limits, servo-sag
+//! compensation, watchdog); publishes `joint_states` (sensor_msgs/msg/JointState, every driven
+//! joint) at `rate_hz` — except with the `sim` backend, whose simulator publishes the measured
+//! `joint_states` itself.
 //!
 //! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `backend`
-//! (`mock`; the simulator and serial boards come next), `rate_hz` (100), `watchdog_timeout_s`
-//! (0.25), `watchdog_action` (`hold` or `limp`), and the read-only `joint_states_measured`
-//! (whether `joint_states` carries measured positions or, for backends that cannot measure,
-//! the commanded ones).
+//! (`mock` or `sim`), `rate_hz` (100), `watchdog_timeout_s` (0.25), `watchdog_action` (`hold`
+//! or `limp`), `sag_compensation_kp` (the servos' stiffness in N·m/rad for the sag
+//! compensation; 0 = off), `sim_wait_s` (how long the `sim` backend waits for the simulator,
+//! 10 s), and the read-only `joint_states_measured` (whether `joint_states` carries measured
+//! positions or, for backends that cannot measure, the commanded ones).
+//!
+//! With `use_sim_time` the bridge ticks on `/clock`, in lockstep: tick t waits (up to
+//! `lockstep_wait_s` of wall time) for the `joint_commands` stamped t, so a lockstep simulator
+//! gets the answer to every tick computed from that tick's command.
+
+mod sim_link;
 
 use std::collections::BTreeMap;
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{Header, JointState};
-use biped_msgs::ros::{self, NodeSetup, RosNode, Ticker};
+use biped_msgs::ros::{self, NodeSetup, RosNode, Tick, TickSource};
 use ik_solver::BipedModel;
-use joint_bridge::{BridgeConfig, Event, JointBridge, JointSpec, MockBackend, TimeoutAction};
+use joint_bridge::{
+    Backend, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend, SagCompensation,
+    TimeoutAction,
+};
 use ros2_client::ParameterValue;
+use smol::future::FutureExt as _;
 
-const PARAMS: [&str; 5] = [
+use crate::sim_link::{SimLink, SimLinkHandle};
+
+const PARAMS: [&str; 8] = [
     "robot_description_file",
     "backend",
     "rate_hz",
     "watchdog_timeout_s",
     "watchdog_action",
+    "sag_compensation_kp",
+    "sim_wait_s",
+    "lockstep_wait_s",
 ];
 
 fn main() -> ExitCode {
@@ -53,31 +72,36 @@ fn run() -> anyhow::Result<()> {
     let rate_hz = setup.f64_param("rate_hz", 100.0)?;
     let timeout_s = setup.f64_param("watchdog_timeout_s", 0.25)?;
     let action_name = setup.str_param("watchdog_action", "hold")?;
+    let kp = setup.f64_param("sag_compensation_kp", 0.0)?;
+    let sim_wait_s = setup.f64_param("sim_wait_s", 10.0)?;
+    let lockstep_wait_s = setup.f64_param("lockstep_wait_s", 0.5)?;
     if !(1.0..=1000.0).contains(&rate_hz) {
         anyhow::bail!("parameter `rate_hz` = {rate_hz} is out of range [1, 1000] Hz");
     }
     if !(timeout_s > 0.0 && timeout_s <= 60.0) {
         anyhow::bail!("parameter `watchdog_timeout_s` = {timeout_s} is out of range (0, 60] s");
     }
+    if !(kp.is_finite() && (0.0..=1e4).contains(&kp)) {
+        anyhow::bail!(
+            "parameter `sag_compensation_kp` = {kp} is out of range [0, 10000] N·m/rad (0 = off)"
+        );
+    }
+    for (name, v) in [("sim_wait_s", sim_wait_s), ("lockstep_wait_s", lockstep_wait_s)] {
+        if !(v > 0.0 && v <= 600.0) {
+            anyhow::bail!("parameter `{name}` = {v} is out of range (0, 600] s");
+        }
+    }
     let action: TimeoutAction = action_name
         .parse()
         .map_err(|e: String| anyhow::anyhow!("parameter `watchdog_action`: {e}"))?;
-    let backend = match backend_name.as_str() {
-        "mock" => MockBackend::default(),
-        other => anyhow::bail!("parameter `backend` = `{other}`: not available (mock)"),
-    };
+    if !["mock", "sim"].contains(&backend_name.as_str()) {
+        anyhow::bail!("parameter `backend` = `{backend_name}`: not available (mock or sim)");
+    }
     let model = BipedModel::from_file_or_default(&robot_file, None)
         .with_context(|| format!("robot_description_file `{robot_file}`"))?;
     let joints = JointSpec::from_robot(model.robot());
     let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
-    let mut bridge = JointBridge::new(
-        backend,
-        joints,
-        BridgeConfig {
-            watchdog_timeout_s: timeout_s,
-            on_timeout: action,
-        },
-    );
+    let sim = backend_name == "sim";
 
     let declared = BTreeMap::from([
         (
@@ -97,9 +121,15 @@ fn run() -> anyhow::Result<()> {
             "watchdog_action".to_string(),
             ParameterValue::String(action_name.clone()),
         ),
+        ("sag_compensation_kp".to_string(), ParameterValue::Double(kp)),
+        ("sim_wait_s".to_string(), ParameterValue::Double(sim_wait_s)),
+        (
+            "lockstep_wait_s".to_string(),
+            ParameterValue::Double(lockstep_wait_s),
+        ),
         (
             "joint_states_measured".to_string(),
-            ParameterValue::Boolean(false),
+            ParameterValue::Boolean(sim),
         ),
     ]);
     let check = |name: &str, _: &ParameterValue| -> Result<(), String> {
@@ -114,18 +144,60 @@ fn run() -> anyhow::Result<()> {
     let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
     let stop = ros::shutdown_flag()?;
     let sub = ros.subscription::<JointState>("joint_commands")?;
-    let publisher = ros.publisher::<JointState>("joint_states")?;
+    let mut ticks = TickSource::new(&mut ros, rate_hz)?;
+    let simulated = ticks.simulated();
+    let (backend, link, states_pub): (Box<dyn Backend>, Option<SimLinkHandle>, _) = if sim {
+        let (link, handle) = SimLink::new(
+            ros.publisher::<JointState>("sim/joint_commands")?,
+            ros.subscription::<JointState>("joint_states")?,
+            Duration::from_secs_f64(sim_wait_s),
+            simulated,
+        );
+        (Box::new(link), Some(handle), None)
+    } else {
+        (
+            Box::new(MockBackend::default()),
+            None,
+            Some(ros.publisher::<JointState>("joint_states")?),
+        )
+    };
+    let mut bridge = JointBridge::new(
+        backend,
+        joints.clone(),
+        BridgeConfig {
+            watchdog_timeout_s: timeout_s,
+            on_timeout: action,
+        },
+    );
+    if kp > 0.0 {
+        bridge = bridge.with_sag_compensation(SagCompensation::new(model, kp, &joints)?);
+    }
     let executor = ros.executor()?;
 
     bridge
         .start()
         .map_err(|e| anyhow::anyhow!("backend {backend_name}: {e}"))?;
+    let compensation = if kp > 0.0 {
+        format!("sag compensation for {kp} N·m/rad servos")
+    } else {
+        "no sag compensation".to_string()
+    };
+    let states = if sim {
+        "the simulator publishes the measured joint_states".to_string()
+    } else {
+        format!(
+            "joint_states carries commanded positions (the {backend_name} backend cannot measure)"
+        )
+    };
+    let clock = if simulated {
+        "on /clock (lockstep)"
+    } else {
+        "on the monotonic clock"
+    };
     ros.info(&format!(
-            "ready: backend {backend_name} active, {} joints, {rate_hz} Hz, watchdog {timeout_s} s ({action_name}); joint_states carries commanded positions (the {backend_name} backend cannot measure)",
-            names.len()
-        ),
-    );
-    let t0 = std::time::Instant::now();
+        "ready: backend {backend_name} active, {} joints, {rate_hz} Hz {clock}, watchdog {timeout_s} s ({action_name}), {compensation}; {states}",
+        names.len()
+    ));
     let report = |events: Vec<Event>| {
         for e in events {
             match e {
@@ -135,43 +207,104 @@ fn run() -> anyhow::Result<()> {
             }
         }
     };
+    // One control period at t: watchdog, write, read back, publish.
+    let do_tick = |bridge: &mut JointBridge<Box<dyn Backend>>, t_s: f64| {
+        let (reading, events) = bridge.tick(t_s);
+        report(events);
+        if let Some(link) = &link
+            && bridge.state() != Lifecycle::Active
+            && simulated
+            && let Err(e) = link.answer_without_command(t_s)
+        {
+            ros.error(&format!("sim link: {e}"));
+        }
+        match (reading, &states_pub) {
+            (Ok(r), Some(publisher)) => {
+                let msg = JointState {
+                    header: Header {
+                        stamp: ros.node.time_now().into(),
+                        frame_id: String::new(),
+                    },
+                    name: names.clone(),
+                    position: r.positions_rad,
+                    velocity: r.velocities_rad_s.unwrap_or_default(),
+                    effort: Vec::new(),
+                };
+                if let Err(e) = publisher.publish(msg) {
+                    ros.error(&format!("publish joint_states: {e:?}"));
+                }
+            }
+            (Ok(_), None) => {}
+            (Err(e), _) => ros.error(&format!("backend read: {e}")),
+        }
+    };
+    let t0 = Instant::now();
     smol::block_on(executor.run(async {
-        let mut ticker = Ticker::new(rate_hz);
+        if !simulated {
+            while !stop.load(Ordering::SeqCst) {
+                let _ = ticks.next().await;
+                let t = t0.elapsed().as_secs_f64();
+                while let Some(cmd) = take_command(&sub, &ros) {
+                    report(bridge.command(t, &cmd.name, &cmd.position));
+                }
+                do_tick(&mut bridge, t);
+            }
+            return;
+        }
+        // Lockstep on /clock: tick t runs when the command stamped t (or later) has come, or
+        // after lockstep_wait_s of wall time without it (then the watchdog decides).
+        enum Wake {
+            Tick(Option<Tick>),
+            Command(Option<JointState>),
+        }
+        let mut pending: Option<(f64, Instant)> = None;
+        let mut clock_s = 0.0;
+        let mut newest_command_s = f64::NEG_INFINITY;
+        let wait = Duration::from_secs_f64(lockstep_wait_s);
         while !stop.load(Ordering::SeqCst) {
-            ticker.next().await;
-            loop {
-                match sub.take() {
-                    Ok(Some((cmd, _))) => {
-                        report(bridge.command(t0.elapsed().as_secs_f64(), &cmd.name, &cmd.position))
-                    }
-                    Ok(None) => break,
+            let wake = async {
+                Wake::Command(match sub.async_take().await {
+                    Ok((m, _)) => Some(m),
                     Err(e) => {
                         ros.warn(&format!(
                             "joint_commands: unreadable message dropped: {e:?}"
                         ));
-                        break;
+                        None
                     }
+                })
+            }
+            .or(async { Wake::Tick(ticks.next().await) })
+            .await;
+            match wake {
+                Wake::Command(Some(cmd)) => {
+                    newest_command_s = newest_command_s.max(cmd.header.stamp.as_secs_f64());
+                    report(bridge.command(clock_s, &cmd.name, &cmd.position));
+                }
+                Wake::Command(None) | Wake::Tick(None) => {}
+                Wake::Tick(Some(tick)) => {
+                    let t = tick.sim_time.map_or(0.0, |s| s.as_secs_f64());
+                    if tick.repeat {
+                        if pending.is_none()
+                            && let Some(link) = &link
+                            && let Err(e) = link.resend()
+                        {
+                            ros.error(&format!("sim link: {e}"));
+                        }
+                        continue;
+                    }
+                    // A tick still waiting for its command when the next comes: run it now.
+                    if let Some((p, _)) = pending.take() {
+                        do_tick(&mut bridge, p);
+                    }
+                    clock_s = t;
+                    pending = Some((t, Instant::now()));
                 }
             }
-            let (reading, events) = bridge.tick(t0.elapsed().as_secs_f64());
-            report(events);
-            match reading {
-                Ok(r) => {
-                    let msg = JointState {
-                        header: Header {
-                            stamp: ros.node.time_now().into(),
-                            frame_id: String::new(),
-                        },
-                        name: names.clone(),
-                        position: r.positions_rad,
-                        velocity: r.velocities_rad_s.unwrap_or_default(),
-                        effort: Vec::new(),
-                    };
-                    if let Err(e) = publisher.publish(msg) {
-                        ros.error(&format!("publish joint_states: {e:?}"));
-                    }
-                }
-                Err(e) => ros.error(&format!("backend read: {e}")),
+            if let Some((p, since)) = pending
+                && (newest_command_s >= p - 1e-9 || since.elapsed() >= wait)
+            {
+                pending = None;
+                do_tick(&mut bridge, p);
             }
         }
     }));
@@ -180,4 +313,19 @@ fn run() -> anyhow::Result<()> {
     }
     ros.info("shutting down: torque off");
     Ok(())
+}
+
+/// The next joint command waiting, if any (unreadable ones are dropped with a warning).
+fn take_command(sub: &ros2_client::Subscription<JointState>, ros: &RosNode) -> Option<JointState> {
+    loop {
+        match sub.take() {
+            Ok(Some((cmd, _))) => return Some(cmd),
+            Ok(None) => return None,
+            Err(e) => {
+                ros.warn(&format!(
+                    "joint_commands: unreadable message dropped: {e:?}"
+                ));
+            }
+        }
+    }
 }

@@ -1,0 +1,411 @@
+//! The `sim_bridge` ROS 2 node: the robot in MuJoCo, driven over DDS like a servo board.
+//!
+//! - subscribes `sim/joint_commands` (sensor_msgs/msg/JointState, servo targets by URDF joint
+//!   name; the joint_bridge node's `sim` backend sends them; a message without names turns
+//!   the torque off, the next one with names turns it back on);
+//! - publishes, every `1 / clock_rate_hz` of simulated time: `joint_states`
+//!   (sensor_msgs/msg/JointState, measured positions and velocities of every joint),
+//!   `sim/base_pose` (geometry_msgs/msg/PoseStamped, ground truth of the base link in
+//!   `world_frame`), `sim/cop` (geometry_msgs/msg/PointStamped, the centre of pressure of the
+//!   floor contact forces, when the floor carries the robot), `sim/support_polygon`
+//!   (geometry_msgs/msg/PolygonStamped, the convex hull of the loaded soles), and `/clock`
+//!   (rosgraph_msgs/msg/Clock, last);
+//! - reports a fall once on `sim/fall` (std_msgs/msg/String, the reason) and `/rosout`.
+//!
+//! Time: with `lockstep` (default) the simulation steps to t + 1/clock_rate_hz only once the
+//! joint_bridge has answered tick t (a `sim/joint_commands` stamped t or later; while waiting,
+//! `/clock` and the states are sent again every 50 ms so late peers catch up). Every node on
+//! `use_sim_time` then computes exactly what it would in real time, whatever the machine's
+//! load: the run is deterministic. `real_time_factor` paces the simulation against the wall
+//! clock (1 = real time; 0 = as fast as the fleet answers).
+//!
+//! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `lockstep`
+//! (true), `real_time_factor` (1.0), `clock_rate_hz` (100), `world_frame` (`world`), and the
+//! simulator settings of [`sim_bridge::SimConfig`] (`kp_nm_per_rad`, `kv_nm_s_per_rad`,
+//! `torque_limit_nm` (0 = each joint's URDF effort), `armature_kg_m2`, `timestep_s`,
+//! `friction`, `fall_tilt_deg`, `fall_height_drop_m`). The robot starts standing on the floor
+//! at zero joint angles (straight legs), servos on.
+
+use std::collections::{BTreeMap, HashMap};
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use biped_msgs::msg::{
+    Clock, Header, JointState, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose,
+    PoseStamped, Quaternion, StringMsg, Time,
+};
+use biped_msgs::ros::{self, NodeSetup, RosNode};
+use ros2_client::{ParameterValue, Publisher};
+use sim_bridge::{Sim, SimConfig};
+
+const SIM_PARAMS: [&str; 8] = [
+    "kp_nm_per_rad",
+    "kv_nm_s_per_rad",
+    "torque_limit_nm",
+    "armature_kg_m2",
+    "timestep_s",
+    "friction",
+    "fall_tilt_deg",
+    "fall_height_drop_m",
+];
+const NODE_PARAMS: [&str; 5] = [
+    "robot_description_file",
+    "lockstep",
+    "real_time_factor",
+    "clock_rate_hz",
+    "world_frame",
+];
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("sim_bridge: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The simulator settings from the node's parameters (defaults: [`SimConfig::default`]).
+fn sim_config(setup: &NodeSetup) -> anyhow::Result<SimConfig> {
+    let d = SimConfig::default();
+    let torque_limit = setup.f64_param("torque_limit_nm", 0.0)?;
+    let cfg = SimConfig {
+        kp_nm_per_rad: setup.f64_param("kp_nm_per_rad", d.kp_nm_per_rad)?,
+        kv_nm_s_per_rad: setup.f64_param("kv_nm_s_per_rad", d.kv_nm_s_per_rad)?,
+        torque_limit_nm: (torque_limit != 0.0).then_some(torque_limit),
+        armature_kg_m2: setup.f64_param("armature_kg_m2", d.armature_kg_m2)?,
+        timestep_s: setup.f64_param("timestep_s", d.timestep_s)?,
+        friction: setup.f64_param("friction", d.friction)?,
+        fall_tilt_deg: setup.f64_param("fall_tilt_deg", d.fall_tilt_deg)?,
+        fall_height_drop_m: setup.f64_param("fall_height_drop_m", d.fall_height_drop_m)?,
+        settle_s: 0.0,
+    };
+    cfg.validate()
+        .map_err(|e| anyhow::anyhow!("parameter {e}"))?;
+    Ok(cfg)
+}
+
+/// The node's publishers.
+struct Outputs {
+    joint_states: Publisher<JointState>,
+    base_pose: Publisher<PoseStamped>,
+    cop: Publisher<PointStamped>,
+    support: Publisher<PolygonStamped>,
+    fall: Publisher<StringMsg>,
+    clock: Publisher<Clock>,
+    world_frame: String,
+}
+
+impl Outputs {
+    /// Publishes the state at the simulator's present time, `/clock` last.
+    fn publish(&self, ros: &RosNode, sim: &Sim, t: Time) {
+        let header = |frame: &str| Header {
+            stamp: t,
+            frame_id: frame.to_owned(),
+        };
+        let base = sim.base_pose();
+        let (b, q) = (base.translation.vector, base.rotation.quaternion());
+        let contacts = sim.contacts();
+        let mut failed = Vec::new();
+        let mut check = |what: &str, r: Result<(), String>| {
+            if let Err(e) = r {
+                failed.push(format!("{what}: {e}"));
+            }
+        };
+        check(
+            "joint_states",
+            self.joint_states
+                .publish(JointState {
+                    header: header(""),
+                    name: sim.joint_names().to_vec(),
+                    position: sim.joint_positions_rad(),
+                    velocity: sim.joint_velocities_rad_s(),
+                    effort: Vec::new(),
+                })
+                .map_err(|e| format!("{e:?}")),
+        );
+        check(
+            "sim/base_pose",
+            self.base_pose
+                .publish(PoseStamped {
+                    header: header(&self.world_frame),
+                    pose: Pose {
+                        position: Point {
+                            x: b.x,
+                            y: b.y,
+                            z: b.z,
+                        },
+                        orientation: Quaternion {
+                            x: q.i,
+                            y: q.j,
+                            z: q.k,
+                            w: q.w,
+                        },
+                    },
+                })
+                .map_err(|e| format!("{e:?}")),
+        );
+        if let Some([x, y]) = contacts.cop_world_m {
+            check(
+                "sim/cop",
+                self.cop
+                    .publish(PointStamped {
+                        header: header(&self.world_frame),
+                        point: Point { x, y, z: 0.0 },
+                    })
+                    .map_err(|e| format!("{e:?}")),
+            );
+        }
+        check(
+            "sim/support_polygon",
+            self.support
+                .publish(PolygonStamped {
+                    header: header(&self.world_frame),
+                    polygon: Polygon {
+                        points: contacts
+                            .support_polygon
+                            .iter()
+                            .map(|p| Point32 {
+                                x: p[0] as f32,
+                                y: p[1] as f32,
+                                z: 0.0,
+                            })
+                            .collect(),
+                    },
+                })
+                .map_err(|e| format!("{e:?}")),
+        );
+        check(
+            "/clock",
+            self.clock
+                .publish(Clock { clock: t })
+                .map_err(|e| format!("{e:?}")),
+        );
+        for f in failed {
+            ros.error(&format!("publish {f}"));
+        }
+    }
+}
+
+fn run() -> anyhow::Result<()> {
+    let setup = NodeSetup::from_env("sim_bridge")?;
+    if !setup.own_args.is_empty() {
+        anyhow::bail!(
+            "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
+            setup.own_args
+        );
+    }
+    let known: Vec<&str> = SIM_PARAMS.iter().chain(&NODE_PARAMS).copied().collect();
+    ros::check_known(&setup.params, &known)?;
+    let robot_file = setup.str_param("robot_description_file", "")?;
+    let lockstep = match setup.params.get("lockstep") {
+        None => true,
+        Some(v) => v
+            .as_bool()
+            .ok_or_else(|| anyhow::anyhow!("parameter `lockstep` = {v:?}: not a boolean"))?,
+    };
+    let rtf = setup.f64_param("real_time_factor", 1.0)?;
+    let rate_hz = setup.f64_param("clock_rate_hz", 100.0)?;
+    let world_frame = setup.str_param("world_frame", "world")?;
+    if !(rtf.is_finite() && (0.0..=1000.0).contains(&rtf)) {
+        anyhow::bail!(
+            "parameter `real_time_factor` = {rtf} is out of range [0, 1000] (0 = as fast as possible)"
+        );
+    }
+    if !(1.0..=1000.0).contains(&rate_hz) {
+        anyhow::bail!("parameter `clock_rate_hz` = {rate_hz} is out of range [1, 1000] Hz");
+    }
+    let cfg = sim_config(&setup)?;
+    let urdf = if robot_file.is_empty() {
+        ik_solver::DEFAULT_URDF.to_owned()
+    } else {
+        std::fs::read_to_string(&robot_file)
+            .with_context(|| format!("robot_description_file `{robot_file}`"))?
+    };
+    let mut sim = Sim::from_urdf_str(&urdf, None, &cfg)
+        .with_context(|| format!("robot_description_file `{robot_file}`"))?;
+    let period_ns = (1e9 / rate_hz).round() as i64;
+    let steps_per_tick = (period_ns as f64 * 1e-9 / cfg.timestep_s).round() as u64;
+    if steps_per_tick == 0 || (steps_per_tick as f64 * cfg.timestep_s * 1e9 - period_ns as f64).abs() > 1.0 {
+        anyhow::bail!(
+            "parameter `clock_rate_hz` = {rate_hz}: its period must be a whole number of physics steps of timestep_s = {} s",
+            cfg.timestep_s
+        );
+    }
+    let names: Vec<String> = sim.joint_names().to_vec();
+    sim.stand(&vec![0.0; names.len()])?;
+
+    let mut declared: BTreeMap<String, ParameterValue> = BTreeMap::from([
+        (
+            "robot_description_file".into(),
+            ParameterValue::String(robot_file.clone()),
+        ),
+        ("lockstep".into(), ParameterValue::Boolean(lockstep)),
+        ("real_time_factor".into(), ParameterValue::Double(rtf)),
+        ("clock_rate_hz".into(), ParameterValue::Double(rate_hz)),
+        (
+            "world_frame".into(),
+            ParameterValue::String(world_frame.clone()),
+        ),
+    ]);
+    for (k, v) in [
+        ("kp_nm_per_rad", cfg.kp_nm_per_rad),
+        ("kv_nm_s_per_rad", cfg.kv_nm_s_per_rad),
+        ("torque_limit_nm", cfg.torque_limit_nm.unwrap_or(0.0)),
+        ("armature_kg_m2", cfg.armature_kg_m2),
+        ("timestep_s", cfg.timestep_s),
+        ("friction", cfg.friction),
+        ("fall_tilt_deg", cfg.fall_tilt_deg),
+        ("fall_height_drop_m", cfg.fall_height_drop_m),
+    ] {
+        declared.insert(k.into(), ParameterValue::Double(v));
+    }
+    let check = |name: &str, _: &ParameterValue| -> Result<(), String> {
+        if name == "use_sim_time" {
+            Ok(())
+        } else {
+            Err(format!(
+                "{name} is read at start-up; restart the node to change it"
+            ))
+        }
+    };
+    let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
+    let stop = ros::shutdown_flag()?;
+    let commands = ros.subscription::<JointState>("sim/joint_commands")?;
+    let out = Outputs {
+        joint_states: ros.publisher::<JointState>("joint_states")?,
+        base_pose: ros.publisher::<PoseStamped>("sim/base_pose")?,
+        cop: ros.publisher::<PointStamped>("sim/cop")?,
+        support: ros.publisher::<PolygonStamped>("sim/support_polygon")?,
+        fall: ros.publisher::<StringMsg>("sim/fall")?,
+        clock: ros.publisher::<Clock>("/clock")?,
+        world_frame,
+    };
+    let executor = ros.executor()?;
+    let index: HashMap<String, usize> = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| (n.clone(), i))
+        .collect();
+    ros.info(&format!(
+        "ready: robot {} in MuJoCo ({} joints, {:.3} kg), {} Hz clock, {}, {}",
+        sim.biped().robot().name(),
+        names.len(),
+        sim.total_mass_kg(),
+        rate_hz,
+        if lockstep {
+            "lockstep with the joint_bridge"
+        } else {
+            "free-running"
+        },
+        if rtf > 0.0 {
+            format!("{rtf}x real time")
+        } else {
+            "as fast as possible".into()
+        }
+    ));
+
+    let mut t_ns: i64 = 0;
+    let mut newest_answer_ns = i64::MIN;
+    let mut reported_fall = false;
+    let mut unknown_reported = std::collections::HashSet::new();
+    let mut last_publish = Instant::now();
+    let mut inbox: Option<JointState> = None;
+    let wall0 = Instant::now();
+    out.publish(&ros, &sim, Time::from_nanos(t_ns));
+    let result: anyhow::Result<()> = smol::block_on(executor.run(async {
+        while !stop.load(Ordering::SeqCst) {
+            // Commands: the newest targets win; names the robot lacks are reported once.
+            let mut batch: Vec<JointState> = inbox.take().into_iter().collect();
+            while let Ok(Some((cmd, _))) = commands.take() {
+                batch.push(cmd);
+            }
+            for cmd in batch {
+                newest_answer_ns = newest_answer_ns.max(cmd.header.stamp.to_nanos());
+                if cmd.name.is_empty() {
+                    if sim.torque_on() {
+                        ros.warn("torque off (an empty sim/joint_commands)");
+                    }
+                    sim.set_torque(false);
+                    continue;
+                }
+                if cmd.name.len() != cmd.position.len() {
+                    ros.warn(&format!(
+                        "sim/joint_commands with {} names and {} positions ignored",
+                        cmd.name.len(),
+                        cmd.position.len()
+                    ));
+                    continue;
+                }
+                let mut targets = sim.targets_rad().to_vec();
+                for (n, &p) in cmd.name.iter().zip(&cmd.position) {
+                    match index.get(n) {
+                        Some(&i) => targets[i] = p,
+                        None => {
+                            if unknown_reported.insert(n.clone()) {
+                                ros.warn(&format!(
+                                    "sim/joint_commands: unknown joint `{n}` ignored (reported once)"
+                                ));
+                            }
+                        }
+                    }
+                }
+                match sim.set_targets(&targets) {
+                    Ok(()) => {
+                        if !sim.torque_on() {
+                            sim.set_torque(true);
+                            ros.info("torque on");
+                        }
+                    }
+                    Err(e) => ros.warn(&format!("sim/joint_commands refused: {e}")),
+                }
+            }
+            let answered = !lockstep || newest_answer_ns >= t_ns;
+            let due = rtf == 0.0
+                || wall0.elapsed().as_secs_f64() * rtf >= (t_ns + period_ns) as f64 * 1e-9;
+            if answered && due {
+                sim.physics_steps(steps_per_tick)?;
+                t_ns += period_ns;
+                out.publish(&ros, &sim, Time::from_nanos(t_ns));
+                last_publish = Instant::now();
+                if !reported_fall && let Some(f) = sim.fallen() {
+                    reported_fall = true;
+                    let msg = format!("the robot fell at t = {:.3} s: {}", f.t_s, f.reason);
+                    ros.error(&msg);
+                    if let Err(e) = out.fall.publish(StringMsg { data: msg }) {
+                        ros.error(&format!("publish sim/fall: {e:?}"));
+                    }
+                }
+                continue;
+            }
+            if !answered && last_publish.elapsed() >= Duration::from_millis(50) {
+                // Still waiting for tick t's answer: say t again (a late peer catches up).
+                out.publish(&ros, &sim, Time::from_nanos(t_ns));
+                last_publish = Instant::now();
+            }
+            // Wait for a command, or for the wall clock when pacing.
+            let wait = if answered {
+                Duration::from_secs_f64(
+                    ((t_ns + period_ns) as f64 * 1e-9 / rtf.max(1e-9)
+                        - wall0.elapsed().as_secs_f64())
+                    .clamp(0.0, 0.05),
+                )
+            } else {
+                Duration::from_millis(50)
+            };
+            use smol::future::FutureExt as _;
+            inbox = async { commands.async_take().await.ok().map(|(cmd, _)| cmd) }
+                .or(async {
+                    smol::Timer::after(wait).await;
+                    None
+                })
+                .await;
+        }
+        Ok(())
+    }));
+    ros.info("shutting down");
+    result
+}

@@ -1,0 +1,269 @@
+//! `biped walk`: the robot walks in MuJoCo, driven over DDS by the same fleet that drives a
+//! real robot, and the walk is measured.
+//!
+//! 1. Starts `joint_bridge` (backend `sim`, sag compensation), `ik_solver` and
+//!    `gait_planner`, all on simulated time, with discovery restricted to this host unless
+//!    `ROS_AUTOMATIC_DISCOVERY_RANGE` says otherwise.
+//! 2. Sends the walk command (`walk_command`, `start_time` = the settling time) once the
+//!    planner listens, then starts `sim_bridge` in lockstep: the command is waiting before
+//!    simulated time begins, so the walk starts at the same tick on every run.
+//! 3. Records what the fleet publishes (`gait/phase`, `joint_commands`, `joint_states`,
+//!    `sim/base_pose`, `sim/cop`, `sim/support_polygon`, `sim/fall`) until the planner is
+//!    idle again and the robot has stood for `tail_s`, or it fell.
+//! 4. Writes `report.json` and the pictures ([`report`], [`pictures`]); stops the fleet.
+
+pub mod pictures;
+pub mod record;
+pub mod report;
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use biped_msgs::msg::{
+    Clock, GaitPhase, JointState, PointStamped, PolygonStamped, PoseStamped, StringMsg, Time,
+    WalkCommand,
+};
+use biped_msgs::ros::{self, DiscoveryRange};
+use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
+use ik_solver::BipedModel;
+use smol::future::FutureExt as _;
+
+use crate::launch::{Fleet, LaunchOptions};
+use record::Recording;
+
+/// What `biped walk` does.
+#[derive(Debug, Clone)]
+pub struct WalkOptions {
+    /// Steps (swings before the closing half step).
+    pub steps: u32,
+    /// Robot URDF; `None` for the built-in robot.
+    pub robot: Option<PathBuf>,
+    /// ROS 2 parameter file for every node (gait and simulator parameters).
+    pub params: Option<PathBuf>,
+    /// Output folder.
+    pub out: PathBuf,
+    /// Pace the simulation at real time (else as fast as the fleet answers).
+    pub real_time: bool,
+    /// Simulated time the robot stands before the walk starts (s).
+    pub settle_s: f64,
+    /// Simulated time recorded after the walk ends (s).
+    pub tail_s: f64,
+    /// Wall-clock seconds without any simulated time passing before giving up.
+    pub stall_s: f64,
+}
+
+/// The walk's outcome: the report and the files written.
+#[derive(Debug)]
+pub struct WalkOutcome {
+    /// What was measured.
+    pub report: report::WalkSummary,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+}
+
+/// The DDS environment of the walk: the user's, with discovery on this host by default.
+fn environment() -> anyhow::Result<(u16, DiscoveryRange, Vec<(String, String)>)> {
+    let range_set = std::env::var("ROS_AUTOMATIC_DISCOVERY_RANGE").is_ok_and(|v| !v.is_empty());
+    let var = |k: &str| {
+        if k == "ROS_AUTOMATIC_DISCOVERY_RANGE" && !range_set {
+            Some("LOCALHOST".to_owned())
+        } else {
+            std::env::var(k).ok()
+        }
+    };
+    let (domain, range) = ros::ros_environment_from(var)?;
+    let mut env = Vec::new();
+    if !range_set {
+        env.push(("ROS_AUTOMATIC_DISCOVERY_RANGE".into(), "LOCALHOST".into()));
+    }
+    Ok((domain, range, env))
+}
+
+/// Runs the walk.
+pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
+    let model = match &o.robot {
+        Some(p) => {
+            BipedModel::from_urdf_file(p, None).with_context(|| format!("robot {}", p.display()))?
+        }
+        None => BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None)
+            .context("built-in robot")?,
+    };
+    let params = match &o.params {
+        Some(p) => GaitParams::from_ros_yaml_file(p)?,
+        None => GaitParams::default(),
+    };
+    // The offline plan of the same walk: what the planner node will publish, tick for tick.
+    let mut planner = GaitPlanner::new(model.clone(), params)?;
+    let plan = planner.plan(WalkRequest::Steps(o.steps))?;
+    let plan_duration_s = plan.last().map_or(0.0, |s| s.t_s) - plan.first().map_or(0.0, |s| s.t_s);
+    std::fs::create_dir_all(&o.out)
+        .with_context(|| format!("cannot create output folder {}", o.out.display()))?;
+
+    let (domain, range, env) = environment()?;
+    let mut fleet = Fleet::new(LaunchOptions {
+        backend: "sim".into(),
+        robot: o.robot.clone(),
+        params: o.params.clone(),
+        namespace: "/".into(),
+        log_dir: o.out.join("logs"),
+        node_params: vec![(
+            "sim_bridge".into(),
+            format!(
+                "real_time_factor:={}",
+                if o.real_time { "1.0" } else { "0.0" }
+            ),
+        )],
+        env,
+    })?;
+    for node in ["joint_bridge", "ik_solver", "gait_planner"] {
+        fleet.spawn(node)?;
+    }
+
+    let context = ros::context_for(domain, range)?;
+    let mut node = ros::create_node(
+        &context,
+        "biped_walk",
+        "/",
+        &Default::default(),
+        None,
+        false,
+    )?;
+    let qos = ros::qos::default();
+    macro_rules! sub {
+        ($ty:ty, $name:literal) => {{
+            let topic = node
+                .create_topic(
+                    &ros::topic_name(&Default::default(), "/", $name)?,
+                    <$ty as biped_msgs::RosMessage>::message_type_name(),
+                    &qos,
+                )
+                .map_err(|e| anyhow::anyhow!("topic {}: {e:?}", $name))?;
+            node.create_subscription::<$ty>(&topic, None)
+                .map_err(|e| anyhow::anyhow!("subscription {}: {e:?}", $name))?
+        }};
+    }
+    let clock = sub!(Clock, "/clock");
+    let phase = sub!(GaitPhase, "/gait/phase");
+    let commands = sub!(JointState, "/joint_commands");
+    let states = sub!(JointState, "/joint_states");
+    let base = sub!(PoseStamped, "/sim/base_pose");
+    let cop = sub!(PointStamped, "/sim/cop");
+    let support = sub!(PolygonStamped, "/sim/support_polygon");
+    let fall = sub!(StringMsg, "/sim/fall");
+    let walk_topic = node
+        .create_topic(
+            &ros::topic_name(&Default::default(), "/", "/walk_command")?,
+            <WalkCommand as biped_msgs::RosMessage>::message_type_name(),
+            &qos,
+        )
+        .map_err(|e| anyhow::anyhow!("topic /walk_command: {e:?}"))?;
+    let walk_pub = node
+        .create_publisher::<WalkCommand>(&walk_topic, None)
+        .map_err(|e| anyhow::anyhow!("publisher /walk_command: {e:?}"))?;
+    let spinner = node
+        .spinner()
+        .map_err(|e| anyhow::anyhow!("spinner: {e:?}"))?;
+    let executor = smol::LocalExecutor::new();
+    executor.spawn(spinner.spin()).detach();
+
+    let wall0 = Instant::now();
+    let mut rec = Recording::default();
+    let result: anyhow::Result<()> = smol::block_on(executor.run(async {
+        // 1. The planner listens: send the command, a few times (it ignores repeats of a
+        //    stamped command), then start the simulator.
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while walk_pub.get_subscription_count(&node) == 0 {
+            if let Some(why) = fleet.failed() {
+                anyhow::bail!("{why}");
+            }
+            if Instant::now() > deadline {
+                anyhow::bail!(
+                    "the gait_planner did not subscribe walk_command within 60 s; see {}",
+                    o.out.join("logs").display()
+                );
+            }
+            smol::Timer::after(Duration::from_millis(50)).await;
+        }
+        let command = WalkCommand {
+            steps: o.steps,
+            start_time: Time::from_nanos((o.settle_s * 1e9).round() as i64),
+            ..WalkCommand::default()
+        };
+        for _ in 0..3 {
+            walk_pub
+                .publish(command.clone())
+                .map_err(|e| anyhow::anyhow!("publish walk_command: {e:?}"))?;
+            smol::Timer::after(Duration::from_millis(100)).await;
+        }
+        fleet.spawn("sim_bridge")?;
+        println!(
+            "walking {} steps in simulation (lockstep{}); the walk starts at t = {:.2} s",
+            o.steps,
+            if o.real_time { ", real time" } else { "" },
+            o.settle_s
+        );
+
+        // 2. Record until the walk is over, or the robot fell.
+        let mut last_clock_wall = Instant::now();
+        let mut last_progress_s = -1.0;
+        let end_by_s = o.settle_s + plan_duration_s + o.tail_s + 10.0;
+        loop {
+            let got = async { Some(clock.async_take().await) }
+                .or(async {
+                    smol::Timer::after(Duration::from_millis(200)).await;
+                    None
+                })
+                .await;
+            if let Some(Ok((c, _))) = got {
+                rec.clock_ns = rec.clock_ns.max(c.clock.to_nanos());
+                last_clock_wall = Instant::now();
+            }
+            rec.drain(&phase, &commands, &states, &base, &cop, &support, &fall);
+            if let Some(why) = fleet.failed() {
+                anyhow::bail!("{why}");
+            }
+            let t = rec.clock_ns as f64 * 1e-9;
+            if t - last_progress_s >= 2.0 {
+                last_progress_s = t;
+                println!("  {}", rec.progress_line());
+            }
+            if let Some(end_s) = rec.done_at_s(o.tail_s) {
+                if t >= end_s {
+                    break;
+                }
+            }
+            if t > end_by_s {
+                anyhow::bail!(
+                    "the walk did not end by t = {end_by_s:.1} s of simulated time (planned {plan_duration_s:.1} s); see {}",
+                    o.out.join("logs").display()
+                );
+            }
+            if last_clock_wall.elapsed() > Duration::from_secs_f64(o.stall_s) {
+                anyhow::bail!(
+                    "simulated time stood still at {t:.2} s for {:.0} s; see {}",
+                    o.stall_s,
+                    o.out.join("logs").display()
+                );
+            }
+        }
+        Ok(())
+    }));
+    let wall_s = wall0.elapsed().as_secs_f64();
+    fleet.stop(false);
+    result?;
+    let summary = report::summarize(&model, &planner, &plan, &rec, o, wall_s)?;
+    let mut files = Vec::new();
+    let report_path = o.out.join("report.json");
+    std::fs::write(
+        &report_path,
+        serde_json::to_string_pretty(&summary).context("report to JSON")? + "\n",
+    )
+    .with_context(|| format!("cannot write {}", report_path.display()))?;
+    files.push(report_path);
+    files.extend(pictures::write_pictures(&o.out, &model, &planner, &plan, &rec, &summary)?);
+    Ok(WalkOutcome {
+        report: summary,
+        files,
+    })
+}

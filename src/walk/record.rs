@@ -1,0 +1,167 @@
+//! What `biped walk` records from the fleet, keyed by the messages' stamps (simulated time,
+//! ns): every publisher stamps tick t with t, so the streams line up exactly.
+
+use std::collections::BTreeMap;
+
+use biped_msgs::msg::{GaitPhase, JointState, PointStamped, PolygonStamped, PoseStamped, StringMsg};
+use gait_planner::PhaseKind;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use ros2_client::Subscription;
+
+/// The planner's phase at a tick.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PhaseAt {
+    /// The phase.
+    pub kind: PhaseKind,
+    /// The swing number.
+    pub step_index: u32,
+}
+
+/// Everything recorded, by stamp (ns).
+#[derive(Debug, Default)]
+pub struct Recording {
+    /// Newest `/clock` value (ns).
+    pub clock_ns: i64,
+    /// The planner's phase per tick.
+    pub phases: BTreeMap<i64, PhaseAt>,
+    /// The commanded leg joints per tick (ik_solver's `joint_commands`): name → rad.
+    pub commands: BTreeMap<i64, Vec<(String, f64)>>,
+    /// Measured joint positions per tick (sim_bridge's `joint_states`).
+    pub states: BTreeMap<i64, JointState>,
+    /// Ground-truth base pose per tick.
+    pub base: BTreeMap<i64, Isometry3<f64>>,
+    /// Centre of pressure per tick (world x, y, m).
+    pub cop: BTreeMap<i64, [f64; 2]>,
+    /// Support polygon per tick (world x, y, m).
+    pub support: BTreeMap<i64, Vec<[f64; 2]>>,
+    /// The fall report, if any, with the clock when it came (ns).
+    pub fall: Option<(i64, String)>,
+    /// Messages that could not be read, by topic.
+    pub unreadable: BTreeMap<&'static str, u64>,
+}
+
+fn drain<M: 'static>(
+    sub: &Subscription<M>,
+    topic: &'static str,
+    unreadable: &mut BTreeMap<&'static str, u64>,
+    mut f: impl FnMut(M),
+) where
+    M: serde::de::DeserializeOwned,
+{
+    loop {
+        match sub.take() {
+            Ok(Some((m, _))) => f(m),
+            Ok(None) => break,
+            Err(_) => *unreadable.entry(topic).or_default() += 1,
+        }
+    }
+}
+
+impl Recording {
+    /// Takes every message waiting.
+    #[allow(clippy::too_many_arguments)]
+    pub fn drain(
+        &mut self,
+        phase: &Subscription<GaitPhase>,
+        commands: &Subscription<JointState>,
+        states: &Subscription<JointState>,
+        base: &Subscription<PoseStamped>,
+        cop: &Subscription<PointStamped>,
+        support: &Subscription<PolygonStamped>,
+        fall: &Subscription<StringMsg>,
+    ) {
+        let u = &mut self.unreadable;
+        drain(phase, "gait/phase", u, |m| {
+            if let Ok(kind) = m.phase.parse::<PhaseKind>() {
+                self.phases.insert(
+                    m.header.stamp.to_nanos(),
+                    PhaseAt {
+                        kind,
+                        step_index: m.step_index,
+                    },
+                );
+            }
+        });
+        drain(commands, "joint_commands", u, |m| {
+            self.commands.insert(
+                m.header.stamp.to_nanos(),
+                m.name.into_iter().zip(m.position).collect(),
+            );
+        });
+        drain(states, "joint_states", u, |m| {
+            self.states.insert(m.header.stamp.to_nanos(), m);
+        });
+        drain(base, "sim/base_pose", u, |m| {
+            let p = &m.pose.position;
+            let q = &m.pose.orientation;
+            self.base.insert(
+                m.header.stamp.to_nanos(),
+                Isometry3::from_parts(
+                    Translation3::new(p.x, p.y, p.z),
+                    UnitQuaternion::from_quaternion(Quaternion::new(q.w, q.x, q.y, q.z)),
+                ),
+            );
+        });
+        drain(cop, "sim/cop", u, |m| {
+            self.cop
+                .insert(m.header.stamp.to_nanos(), [m.point.x, m.point.y]);
+        });
+        drain(support, "sim/support_polygon", u, |m| {
+            self.support.insert(
+                m.header.stamp.to_nanos(),
+                m.polygon
+                    .points
+                    .iter()
+                    .map(|p| [f64::from(p.x), f64::from(p.y)])
+                    .collect(),
+            );
+        });
+        let clock = self.clock_ns;
+        drain(fall, "sim/fall", u, |m| {
+            if self.fall.is_none() {
+                self.fall = Some((clock, m.data));
+            }
+        });
+    }
+
+    /// The first tick of the walk (the first phase other than idle), ns.
+    pub fn walk_start_ns(&self) -> Option<i64> {
+        self.phases
+            .iter()
+            .find(|(_, p)| p.kind != PhaseKind::Idle)
+            .map(|(&t, _)| t)
+    }
+
+    /// The first idle tick after the walk, ns.
+    pub fn walk_end_ns(&self) -> Option<i64> {
+        let start = self.walk_start_ns()?;
+        self.phases
+            .range(start..)
+            .find(|(_, p)| p.kind == PhaseKind::Idle)
+            .map(|(&t, _)| t)
+    }
+
+    /// When recording can stop (s): `tail_s` after the walk ended, or 0.5 s after a fall.
+    pub fn done_at_s(&self, tail_s: f64) -> Option<f64> {
+        if let Some((t, _)) = &self.fall {
+            return Some(*t as f64 * 1e-9 + 0.5);
+        }
+        self.walk_end_ns().map(|t| t as f64 * 1e-9 + tail_s)
+    }
+
+    /// One line of progress.
+    pub fn progress_line(&self) -> String {
+        let t = self.clock_ns as f64 * 1e-9;
+        let phase = self
+            .phases
+            .values()
+            .next_back()
+            .map_or("-".to_owned(), |p| format!("{} (step {})", p.kind, p.step_index));
+        let x = self
+            .base
+            .values()
+            .next_back()
+            .map_or(f64::NAN, |b| b.translation.x);
+        format!("t = {t:6.2} s  phase {phase:24}  base x = {x:+.3} m")
+    }
+}

@@ -1,0 +1,197 @@
+//! `report.json`: the measures of a recorded walk.
+//!
+//! Each tick from the walk's first phase to the end of the recording is one
+//! [`sim_bridge::Observation`], built from the recorded topics alone: the base pose
+//! (`sim/base_pose`), the measured joints (`joint_states`) through the URDF's forward
+//! kinematics for the feet, the centre of pressure (`sim/cop`) against the support polygon
+//! of the loaded soles (`sim/support_polygon`). A foot stands when its sole centre lies
+//! inside that polygon. [`sim_bridge::WalkMonitor`] turns them into the measures.
+
+use std::collections::BTreeMap;
+
+use anyhow::Context;
+use gait_planner::support::signed_margin;
+use gait_planner::{GaitPlanner, GaitSample, PhaseKind};
+use ik_solver::{BipedModel, Side};
+use nalgebra::Isometry3;
+use serde::Serialize;
+use sim_bridge::{Observation, WalkMonitor, WalkReport};
+
+use super::WalkOptions;
+use super::record::Recording;
+
+/// What `biped walk` writes to `report.json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WalkSummary {
+    /// The robot's URDF name.
+    pub robot: String,
+    /// Steps commanded.
+    pub steps: u32,
+    /// Step length (m).
+    pub step_length_m: f64,
+    /// Simulated time of the walk's first tick (s).
+    pub walk_started_s: f64,
+    /// From the walk's first tick to the planner's idle again (s).
+    pub walk_duration_s: f64,
+    /// Distance over walk duration (m/s).
+    pub speed_m_s: f64,
+    /// The measures (distance, fall, tilt, heading, slip, centre of pressure).
+    #[serde(flatten)]
+    pub measured: WalkReport,
+    /// Smallest margin of the planned CoM to the planned support polygon (m).
+    pub planned_min_com_margin_m: f64,
+    /// The margin the planner was asked to keep (m).
+    pub required_com_margin_m: f64,
+    /// Largest difference between a measured leg joint and the command of the same tick
+    /// during the walk (rad): the servos' lag and sag after compensation.
+    pub max_joint_tracking_error_rad: f64,
+    /// The joint where it happened.
+    pub max_joint_tracking_error_joint: String,
+    /// Simulated time recorded (s).
+    pub simulated_s: f64,
+    /// Wall-clock time of the run, start-up included (s).
+    pub wall_s: f64,
+    /// Simulated seconds per wall-clock second.
+    pub real_time_factor: f64,
+    /// Messages that could not be decoded, by topic.
+    pub unreadable_messages: BTreeMap<String, u64>,
+}
+
+/// The measured joint vector of a `joint_states` message, in the model's dof order.
+pub fn joints_in_model_order(
+    model: &BipedModel,
+    names: &[String],
+    positions: &[f64],
+) -> anyhow::Result<Vec<f64>> {
+    let by_name: BTreeMap<&str, f64> = names
+        .iter()
+        .map(String::as_str)
+        .zip(positions.iter().copied())
+        .collect();
+    model
+        .robot()
+        .dof_names()
+        .map(|n| {
+            by_name
+                .get(n)
+                .copied()
+                .with_context(|| format!("joint_states lacks joint `{n}`"))
+        })
+        .collect()
+}
+
+/// The measures of the recorded walk.
+pub fn summarize(
+    model: &BipedModel,
+    planner: &GaitPlanner,
+    plan: &[GaitSample],
+    rec: &Recording,
+    o: &WalkOptions,
+    wall_s: f64,
+) -> anyhow::Result<WalkSummary> {
+    let start_ns = rec
+        .walk_start_ns()
+        .context("the planner never started the walk (no phase other than idle on gait/phase)")?;
+    let end_ns = rec.walk_end_ns();
+    let phase_at = |t: i64| {
+        rec.phases
+            .range(..=t)
+            .next_back()
+            .map_or(PhaseKind::Idle, |(_, p)| p.kind)
+    };
+    let mut monitor: Option<WalkMonitor> = None;
+    let mut last: Option<(f64, Isometry3<f64>)> = None;
+    let (mut worst_err, mut worst_joint) = (0.0f64, String::new());
+    for (&t, js) in rec.states.range(start_ns..) {
+        let Some(base) = rec.base.get(&t) else {
+            continue;
+        };
+        let q = joints_in_model_order(model, &js.name, &js.position)?;
+        let poses = model
+            .robot()
+            .link_poses(base, &q)
+            .context("forward kinematics of the measured joints")?;
+        let poly = rec.support.get(&t).filter(|p| !p.is_empty());
+        let inside = |p: [f64; 2]| poly.is_some_and(|poly| signed_margin(poly, p) > 0.0);
+        let feet = Side::BOTH.map(|s| {
+            let f = poses[model.leg(s).foot_link].translation.vector;
+            [f.x, f.y]
+        });
+        let standing = Side::BOTH.map(|s| {
+            let c = model.sole_centre_world(&poses, s);
+            inside([c.x, c.y])
+        });
+        let t_s = t as f64 * 1e-9;
+        let obs = Observation {
+            t_s,
+            base: *base,
+            cop_margin_m: match (rec.cop.get(&t), poly) {
+                (Some(&c), Some(poly)) => Some(signed_margin(poly, c)),
+                _ => None,
+            },
+            feet_xy_m: feet,
+            standing,
+            fall: rec
+                .fall
+                .as_ref()
+                .filter(|(tf, _)| *tf <= t)
+                .map(|(tf, why)| (*tf as f64 * 1e-9, why.clone())),
+        };
+        monitor
+            .get_or_insert_with(|| WalkMonitor::starting_at(t_s, *base))
+            .observe_state(&obs, phase_at(t));
+        last = Some((t_s, *base));
+        // Tracking: during the walk, measured against the command of the same tick.
+        if end_ns.is_none_or(|e| t < e)
+            && let Some(cmd) = rec.commands.get(&t)
+        {
+            for (name, commanded) in cmd {
+                if let Some(i) = js.name.iter().position(|n| n == name)
+                    && let Some(measured) = js.position.get(i)
+                {
+                    let err = (measured - commanded).abs();
+                    if err > worst_err {
+                        worst_err = err;
+                        worst_joint = name.clone();
+                    }
+                }
+            }
+        }
+    }
+    let (Some(monitor), Some((t_end, base_end))) = (monitor, last) else {
+        anyhow::bail!("no joint_states and base pose were recorded during the walk");
+    };
+    let c = planner.config();
+    let planned_distance_m = o.steps as f64 * c.step_length_m;
+    let measured = monitor.report_at(t_end, &base_end, planned_distance_m);
+    let walk_duration_s = end_ns.map_or(t_end, |e| e as f64 * 1e-9) - start_ns as f64 * 1e-9;
+    let simulated_s = rec.clock_ns as f64 * 1e-9;
+    Ok(WalkSummary {
+        robot: model.robot().name().to_owned(),
+        steps: o.steps,
+        step_length_m: c.step_length_m,
+        walk_started_s: start_ns as f64 * 1e-9,
+        walk_duration_s,
+        speed_m_s: if walk_duration_s > 0.0 {
+            measured.distance_m / walk_duration_s
+        } else {
+            0.0
+        },
+        planned_min_com_margin_m: plan
+            .iter()
+            .map(|s| s.margin_m)
+            .fold(f64::INFINITY, f64::min),
+        required_com_margin_m: c.min_com_margin_m,
+        measured,
+        max_joint_tracking_error_rad: worst_err,
+        max_joint_tracking_error_joint: worst_joint,
+        simulated_s,
+        wall_s,
+        real_time_factor: if wall_s > 0.0 { simulated_s / wall_s } else { 0.0 },
+        unreadable_messages: rec
+            .unreadable
+            .iter()
+            .map(|(k, v)| ((*k).to_owned(), *v))
+            .collect(),
+    })
+}
