@@ -71,7 +71,10 @@ pub struct Fleet {
 impl std::fmt::Debug for Fleet {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Fleet")
-            .field("nodes", &self.running.iter().map(|r| r.name).collect::<Vec<_>>())
+            .field(
+                "nodes",
+                &self.running.iter().map(|r| r.name).collect::<Vec<_>>(),
+            )
             .finish()
     }
 }
@@ -158,8 +161,8 @@ impl Fleet {
     pub fn spawn(&mut self, name: &'static str) -> anyhow::Result<()> {
         let bin = node_binary(name)?;
         let log = self.options.log_dir.join(format!("{name}.log"));
-        let file =
-            std::fs::File::create(&log).with_context(|| format!("cannot create {}", log.display()))?;
+        let file = std::fs::File::create(&log)
+            .with_context(|| format!("cannot create {}", log.display()))?;
         let err = file.try_clone()?;
         let child = Command::new(&bin)
             .args(self.ros_args(name)?)

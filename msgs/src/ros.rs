@@ -691,7 +691,7 @@ pub enum TickSource {
     /// `/clock` messages.
     Sim {
         /// The `/clock` subscription.
-        clock: ros2_client::Subscription<crate::msg::Clock>,
+        clock: Box<ros2_client::Subscription<crate::msg::Clock>>,
         /// Tick period (ns).
         period_ns: i64,
         /// The last tick's index and `/clock` value (ns).
@@ -719,7 +719,7 @@ impl TickSource {
     pub fn new(ros: &mut RosNode, rate_hz: f64) -> Result<Self, RosError> {
         if ros.setup.use_sim_time() {
             Ok(TickSource::Sim {
-                clock: ros.subscription::<crate::msg::Clock>("/clock")?,
+                clock: Box::new(ros.subscription::<crate::msg::Clock>("/clock")?),
                 period_ns: (1e9 / rate_hz).round() as i64,
                 last: None,
             })

@@ -39,6 +39,6 @@ pub use sim::{
     BODY_CONTACT_FRACTION, COP_MIN_FRACTION, ContactReading, Fall, FallReason, LOADED_FRACTION, Sim,
 };
 pub use walk::{
-    FallReport, Interpolation, Observation, PhaseMargin, PlayOptions, Playback, STANCE_FRACTION, WalkMonitor,
-    WalkReport, run_plan,
+    FallReport, Interpolation, Observation, PhaseMargin, PlayOptions, Playback, STANCE_FRACTION,
+    WalkMonitor, WalkReport, run_plan,
 };

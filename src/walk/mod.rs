@@ -62,8 +62,15 @@ pub struct WalkOutcome {
     pub files: Vec<PathBuf>,
 }
 
+/// The walk's DDS domain, discovery range and the variables the nodes need for them.
+struct DdsEnvironment {
+    domain: u16,
+    range: DiscoveryRange,
+    node_env: Vec<(String, String)>,
+}
+
 /// The DDS environment of the walk: the user's, with discovery on this host by default.
-fn environment() -> anyhow::Result<(u16, DiscoveryRange, Vec<(String, String)>)> {
+fn environment() -> anyhow::Result<DdsEnvironment> {
     let range_set = std::env::var("ROS_AUTOMATIC_DISCOVERY_RANGE").is_ok_and(|v| !v.is_empty());
     let var = |k: &str| {
         if k == "ROS_AUTOMATIC_DISCOVERY_RANGE" && !range_set {
@@ -77,20 +84,41 @@ fn environment() -> anyhow::Result<(u16, DiscoveryRange, Vec<(String, String)>)>
     if !range_set {
         env.push(("ROS_AUTOMATIC_DISCOVERY_RANGE".into(), "LOCALHOST".into()));
     }
-    Ok((domain, range, env))
+    Ok(DdsEnvironment {
+        domain,
+        range,
+        node_env: env,
+    })
+}
+
+/// The gait parameters the gait_planner node will read from a parameter file (its own and
+/// wildcard sections; defaults for what the file does not set).
+fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
+    let args = ros::RosArgs {
+        params_files: vec![path.display().to_string()],
+        ..Default::default()
+    };
+    let mut map = serde_norway::Mapping::new();
+    for (k, v) in ros::node_parameters(&args, "gait_planner", "/")? {
+        if k != "robot_description_file" && k != "use_sim_time" {
+            map.insert(serde_norway::Value::String(k), v);
+        }
+    }
+    serde_norway::from_value(serde_norway::Value::Mapping(map))
+        .with_context(|| format!("gait_planner parameters in {}", path.display()))
 }
 
 /// Runs the walk.
 pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
-    let model = match &o.robot {
-        Some(p) => {
-            BipedModel::from_urdf_file(p, None).with_context(|| format!("robot {}", p.display()))?
-        }
-        None => BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None)
-            .context("built-in robot")?,
-    };
+    let model =
+        match &o.robot {
+            Some(p) => BipedModel::from_urdf_file(p, None)
+                .with_context(|| format!("robot {}", p.display()))?,
+            None => BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None)
+                .context("built-in robot")?,
+        };
     let params = match &o.params {
-        Some(p) => GaitParams::from_ros_yaml_file(p)?,
+        Some(p) => gait_params_of(p)?,
         None => GaitParams::default(),
     };
     // The offline plan of the same walk: what the planner node will publish, tick for tick.
@@ -100,7 +128,11 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     std::fs::create_dir_all(&o.out)
         .with_context(|| format!("cannot create output folder {}", o.out.display()))?;
 
-    let (domain, range, env) = environment()?;
+    let DdsEnvironment {
+        domain,
+        range,
+        node_env: env,
+    } = environment()?;
     let mut fleet = Fleet::new(LaunchOptions {
         backend: "sim".into(),
         robot: o.robot.clone(),
@@ -228,10 +260,10 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 last_progress_s = t;
                 println!("  {}", rec.progress_line());
             }
-            if let Some(end_s) = rec.done_at_s(o.tail_s) {
-                if t >= end_s {
-                    break;
-                }
+            if let Some(end_s) = rec.done_at_s(o.tail_s)
+                && t >= end_s
+            {
+                break;
             }
             if t > end_by_s {
                 anyhow::bail!(
@@ -261,7 +293,9 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     )
     .with_context(|| format!("cannot write {}", report_path.display()))?;
     files.push(report_path);
-    files.extend(pictures::write_pictures(&o.out, &model, &planner, &plan, &rec, &summary)?);
+    files.extend(pictures::write_pictures(
+        &o.out, &model, &planner, &plan, &rec, &summary,
+    )?);
     Ok(WalkOutcome {
         report: summary,
         files,

@@ -155,7 +155,10 @@ fn top_view(
             cop.iter()
                 .map(|&p| Circle::new(p, 2, COP_COLOUR.mix(0.6).filled())),
         )?;
-        chart.draw_series(LineSeries::new(com.iter().copied(), COM_COLOUR.stroke_width(2)))?;
+        chart.draw_series(LineSeries::new(
+            com.iter().copied(),
+            COM_COLOUR.stroke_width(2),
+        ))?;
         chart.draw_series(LineSeries::new(
             base.iter().copied(),
             BASE_COLOUR.stroke_width(3),
@@ -178,7 +181,12 @@ fn joints(model: &BipedModel, rec: &Recording, summary: &WalkSummary) -> anyhow:
     const PANEL_H_PX: u32 = 150;
     let leg_joints: Vec<(Side, String)> = Side::BOTH
         .into_iter()
-        .flat_map(|s| model.leg(s).present().map(move |(_, j)| (s, j.name.clone())))
+        .flat_map(|s| {
+            model
+                .leg(s)
+                .present()
+                .map(move |(_, j)| (s, j.name.clone()))
+        })
         .collect();
     let n = leg_joints.len().div_ceil(2) as u32;
     let height_px = TITLE_H_PX + n * PANEL_H_PX + X_LABELS_PX + MARGIN_PX;
@@ -251,7 +259,10 @@ fn joints(model: &BipedModel, rec: &Recording, summary: &WalkSummary) -> anyhow:
                     mesh.x_desc("simulated time (s)");
                 }
                 mesh.draw()?;
-                chart.draw_series(LineSeries::new(commanded, side_colour(side).stroke_width(3)))?;
+                chart.draw_series(LineSeries::new(
+                    commanded,
+                    side_colour(side).stroke_width(3),
+                ))?;
                 chart.draw_series(LineSeries::new(measured, MEASURED_COLOUR.stroke_width(1)))?;
             }
         }
@@ -334,11 +345,8 @@ fn frames(model: &BipedModel, rec: &Recording, summary: &WalkSummary) -> anyhow:
         draw_title(&head, &title, &subtitle)?;
         let cells = body.split_evenly((ROWS as usize, COLS as usize));
         for (cell, (t, segments)) in cells.iter().zip(&sketches) {
-            let cx = segments
-                .iter()
-                .map(|(a, _, _)| a.0)
-                .sum::<f64>()
-                / segments.len().max(1) as f64;
+            let cx =
+                segments.iter().map(|(a, _, _)| a.0).sum::<f64>() / segments.len().max(1) as f64;
             let half = span * f64::from(CELL_W_PX) / f64::from(CELL_H_PX) / 2.0;
             let mut chart = ChartBuilder::on(cell)
                 .margin(6)

@@ -3,7 +3,9 @@
 
 use std::collections::BTreeMap;
 
-use biped_msgs::msg::{GaitPhase, JointState, PointStamped, PolygonStamped, PoseStamped, StringMsg};
+use biped_msgs::msg::{
+    GaitPhase, JointState, PointStamped, PolygonStamped, PoseStamped, StringMsg,
+};
 use gait_planner::PhaseKind;
 use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use ros2_client::Subscription;
@@ -40,14 +42,12 @@ pub struct Recording {
     pub unreadable: BTreeMap<&'static str, u64>,
 }
 
-fn drain<M: 'static>(
+fn drain<M: serde::de::DeserializeOwned + 'static>(
     sub: &Subscription<M>,
     topic: &'static str,
     unreadable: &mut BTreeMap<&'static str, u64>,
     mut f: impl FnMut(M),
-) where
-    M: serde::de::DeserializeOwned,
-{
+) {
     loop {
         match sub.take() {
             Ok(Some((m, _))) => f(m),
@@ -156,7 +156,9 @@ impl Recording {
             .phases
             .values()
             .next_back()
-            .map_or("-".to_owned(), |p| format!("{} (step {})", p.kind, p.step_index));
+            .map_or("-".to_owned(), |p| {
+                format!("{} (step {})", p.kind, p.step_index)
+            });
         let x = self
             .base
             .values()

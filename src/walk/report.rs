@@ -187,7 +187,11 @@ pub fn summarize(
         max_joint_tracking_error_joint: worst_joint,
         simulated_s,
         wall_s,
-        real_time_factor: if wall_s > 0.0 { simulated_s / wall_s } else { 0.0 },
+        real_time_factor: if wall_s > 0.0 {
+            simulated_s / wall_s
+        } else {
+            0.0
+        },
         unreadable_messages: rec
             .unreadable
             .iter()

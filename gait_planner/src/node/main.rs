@@ -337,7 +337,13 @@ fn run() -> anyhow::Result<()> {
             if tick.repeat {
                 // The lockstep simulator asks again for this tick: same messages.
                 if let Some((phase, targets)) = &last_sent {
-                    publish(&ros, &targets_pub, targets.clone(), &phase_pub, phase.clone());
+                    publish(
+                        &ros,
+                        &targets_pub,
+                        targets.clone(),
+                        &phase_pub,
+                        phase.clone(),
+                    );
                 }
                 continue;
             }
@@ -397,7 +403,13 @@ fn run() -> anyhow::Result<()> {
                 last_phase = Some((sample.phase, sample.step_index));
             }
             let (phase, targets) = to_msgs(&sample, now, &base_frame);
-            publish(&ros, &targets_pub, targets.clone(), &phase_pub, phase.clone());
+            publish(
+                &ros,
+                &targets_pub,
+                targets.clone(),
+                &phase_pub,
+                phase.clone(),
+            );
             last_sent = Some((phase, targets));
         }
         Ok(())

@@ -86,7 +86,10 @@ fn run() -> anyhow::Result<()> {
             "parameter `sag_compensation_kp` = {kp} is out of range [0, 10000] N·m/rad (0 = off)"
         );
     }
-    for (name, v) in [("sim_wait_s", sim_wait_s), ("lockstep_wait_s", lockstep_wait_s)] {
+    for (name, v) in [
+        ("sim_wait_s", sim_wait_s),
+        ("lockstep_wait_s", lockstep_wait_s),
+    ] {
         if !(v > 0.0 && v <= 600.0) {
             anyhow::bail!("parameter `{name}` = {v} is out of range (0, 600] s");
         }
@@ -121,7 +124,10 @@ fn run() -> anyhow::Result<()> {
             "watchdog_action".to_string(),
             ParameterValue::String(action_name.clone()),
         ),
-        ("sag_compensation_kp".to_string(), ParameterValue::Double(kp)),
+        (
+            "sag_compensation_kp".to_string(),
+            ParameterValue::Double(kp),
+        ),
         ("sim_wait_s".to_string(), ParameterValue::Double(sim_wait_s)),
         (
             "lockstep_wait_s".to_string(),

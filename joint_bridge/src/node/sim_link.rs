@@ -114,7 +114,9 @@ pub struct SimLink {
 
 impl std::fmt::Debug for SimLink {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SimLink").field("names", &self.names).finish()
+        f.debug_struct("SimLink")
+            .field("names", &self.names)
+            .finish()
     }
 }
 

@@ -229,7 +229,9 @@ fn run() -> anyhow::Result<()> {
         .with_context(|| format!("robot_description_file `{robot_file}`"))?;
     let period_ns = (1e9 / rate_hz).round() as i64;
     let steps_per_tick = (period_ns as f64 * 1e-9 / cfg.timestep_s).round() as u64;
-    if steps_per_tick == 0 || (steps_per_tick as f64 * cfg.timestep_s * 1e9 - period_ns as f64).abs() > 1.0 {
+    if steps_per_tick == 0
+        || (steps_per_tick as f64 * cfg.timestep_s * 1e9 - period_ns as f64).abs() > 1.0
+    {
         anyhow::bail!(
             "parameter `clock_rate_hz` = {rate_hz}: its period must be a whole number of physics steps of timestep_s = {} s",
             cfg.timestep_s

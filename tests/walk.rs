@@ -1,0 +1,173 @@
+//! `biped walk`, the main job: the fleet (gait_planner, ik_solver, joint_bridge with the sim
+//! backend) and sim_bridge (MuJoCo) over DDS, in lockstep on simulated time. Each run is in a
+//! private network namespace with only loopback, on its own ROS_DOMAIN_ID (67-69), with
+//! discovery restricted to this host by `biped walk` itself.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn bin_dir() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_BIN_EXE_biped"))
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    for node in ["gait_planner", "ik_solver", "joint_bridge", "sim_bridge"] {
+        assert!(
+            dir.join(node).is_file(),
+            "node binary {node} not built in {}: run cargo build --workspace (scripts/test does)",
+            dir.display()
+        );
+    }
+    dir
+}
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("biped-walk-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// `biped walk ARGS --out OUT` in a private network namespace.
+fn walk(domain_id: u32, out: &Path, args: &[&str]) -> Output {
+    let biped = bin_dir().join("biped");
+    Command::new("unshare")
+        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
+        .arg(&biped)
+        .arg("walk")
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .env("ROS_DOMAIN_ID", domain_id.to_string())
+        .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
+        .output()
+        .expect("unshare runs (root needed for a private network namespace)")
+}
+
+fn report(out: &Path) -> Value {
+    let text = std::fs::read_to_string(out.join("report.json")).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+fn num(v: &Value, key: &str) -> f64 {
+    v[key]
+        .as_f64()
+        .unwrap_or_else(|| panic!("report.json has no number `{key}`: {v}"))
+}
+
+/// The walk: 20 steps, default parameters, through the whole fleet. Run twice: the
+/// lockstep runs give the same report, number for number (only the wall-clock figures
+/// differ).
+#[test]
+fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
+    let (a, b) = (out_dir("twenty-a"), out_dir("twenty-b"));
+    let first = walk(67, &a, &["--steps", "20"]);
+    let stdout = String::from_utf8_lossy(&first.stdout);
+    let stderr = String::from_utf8_lossy(&first.stderr);
+    assert!(
+        first.status.success(),
+        "biped walk failed:\n{stdout}\n{stderr}"
+    );
+    let r = report(&a);
+    eprintln!("{}", serde_json::to_string_pretty(&r).unwrap());
+    assert!(r["fell"].is_null(), "the robot fell: {}", r["fell"]);
+    assert!(num(&r, "max_tilt_deg") < 10.0);
+    assert!(num(&r, "heading_drift_deg") < 5.0);
+    assert!(num(&r, "cop_inside_fraction") >= 0.99);
+    assert!(num(&r, "cop_samples") > 2000.0, "one sample per 10 ms tick");
+    let (d, planned) = (num(&r, "distance_m"), num(&r, "planned_distance_m"));
+    assert!((planned - 20.0 * num(&r, "step_length_m")).abs() < 1e-12);
+    assert!(
+        (d - planned).abs() < 0.1 * planned,
+        "walked {d} m of {planned} m"
+    );
+    // Every phase of a walk has its measured centre-of-pressure margin, all inside.
+    let phases: Vec<&str> = r["min_cop_margin_per_phase"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["phase"].as_str().unwrap())
+        .collect();
+    for p in [
+        "crouch",
+        "shift",
+        "half_step",
+        "step",
+        "final_half_step",
+        "center",
+    ] {
+        assert!(
+            phases.contains(&p),
+            "no CoP margin for phase {p}: {phases:?}"
+        );
+    }
+    // The walk started at the commanded tick (1 s of settling).
+    assert_eq!(num(&r, "walk_started_s"), 1.0);
+    for f in ["walk_top_view.svg", "walk_joints.svg", "walk_frames.svg"] {
+        let svg = std::fs::read_to_string(a.join(f)).unwrap();
+        assert!(svg.starts_with("<svg") && svg.len() > 10_000, "{f}");
+    }
+
+    let second = walk(68, &b, &["--steps", "20"]);
+    assert!(
+        second.status.success(),
+        "second run failed: {}",
+        String::from_utf8_lossy(&second.stderr)
+    );
+    let mut r2 = report(&b);
+    let mut r1 = r.clone();
+    for v in [&mut r1, &mut r2] {
+        let o = v.as_object_mut().unwrap();
+        o.remove("wall_s");
+        o.remove("real_time_factor");
+    }
+    assert_eq!(r1, r2, "two lockstep runs of the same walk differ");
+    let _ = std::fs::remove_dir_all(&a);
+    let _ = std::fs::remove_dir_all(&b);
+}
+
+/// Without the joint bridge's sag compensation the hobby servos sag and the robot falls:
+/// `biped walk` says so, writes the fall into report.json and exits non-zero.
+#[test]
+fn a_fall_is_reported_and_fails_the_command() {
+    let out = out_dir("fall");
+    std::fs::create_dir_all(&out).unwrap();
+    let params = out.join("no_compensation.yaml");
+    std::fs::write(
+        &params,
+        "joint_bridge:\n  ros__parameters:\n    sag_compensation_kp: 0.0\n",
+    )
+    .unwrap();
+    let run = walk(
+        69,
+        &out,
+        &["--steps", "4", "--params", params.to_str().unwrap()],
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "a fall must fail the command");
+    assert!(stderr.contains("the robot fell"), "{stderr}");
+    let r = report(&out);
+    let fell = &r["fell"];
+    assert!(fell.is_object(), "{r}");
+    assert!(
+        fell["reason"].as_str().unwrap().contains("tilted"),
+        "{fell}"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// Bad input is refused before anything starts, naming the value.
+#[test]
+fn bad_arguments_are_refused_by_name() {
+    let out = out_dir("bad");
+    let r = walk(69, &out, &["--steps", "0"]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("--steps"));
+    let r = walk(69, &out, &["--settle", "NaN"]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("--settle"));
+    let r = walk(69, &out, &["--robot", "/nonexistent/robot.urdf"]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("/nonexistent/robot.urdf"));
+}
