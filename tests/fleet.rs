@@ -290,3 +290,76 @@ fn biped_launch_starts_the_fleet_and_leaves_no_process_behind() {
         v["alive_after_kill"]
     );
 }
+
+/// `biped launch --backend sim`: a plain rclpy node (as RViz or Foxglove would be) watches
+/// the simulated robot in real time and walks it with a `ros2 topic pub`-style command.
+#[test]
+fn an_rclpy_peer_watches_and_walks_the_simulated_robot_in_real_time() {
+    let v = peer("sim", 60);
+    assert_eq!(v["nodes_seen"], true, "nodes: {}", v["node_names"]);
+    assert_eq!(
+        v["flowing"], true,
+        "no joint_states or /clock from the simulator"
+    );
+    assert_eq!(
+        v["walked"], true,
+        "the walk did not end: {}",
+        v["launcher_stderr"]
+    );
+    assert_eq!(v["launcher_returncode"], 0, "{}", v["launcher_stderr"]);
+    assert!(
+        v["rosout_errors"].as_array().unwrap().is_empty(),
+        "errors on /rosout: {}",
+        v["rosout_errors"]
+    );
+    // /clock is paced by the wall clock: never ahead of real time (how far behind it falls
+    // is the machine's speed, measured in BENCHMARKS.md, not asserted here).
+    let clock = v["clock"].as_array().unwrap();
+    let (first, last) = (&clock[0], &clock[clock.len() - 1]);
+    let sim_s = last["t"].as_f64().unwrap() - first["t"].as_f64().unwrap();
+    let wall_s = last["wall"].as_f64().unwrap() - first["wall"].as_f64().unwrap();
+    assert!(sim_s > 5.0, "walk of {sim_s} s simulated");
+    let rtf = sim_s / wall_s;
+    assert!(rtf < 1.05, "simulated time ran ahead of the wall clock: {rtf}x");
+    let ticks: Vec<f64> = clock.iter().map(|c| c["t"].as_f64().unwrap()).collect();
+    assert!(
+        ticks.windows(2).all(|w| w[1] >= w[0]),
+        "/clock went backwards"
+    );
+    // joint_states: every joint of the robot, measured, stamped on the simulated clock.
+    assert_eq!(v["joint_state_names"].as_array().unwrap().len(), 20);
+    let clock_values: Vec<f64> = v["clock_values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_f64().unwrap())
+        .collect();
+    for s in v["joint_state_stamps"].as_array().unwrap() {
+        let s = s.as_f64().unwrap();
+        assert!(
+            clock_values.iter().any(|c| (c - s).abs() < 1e-6),
+            "joint_states stamp {s} is not a /clock value"
+        );
+    }
+    // Ground truth: the base in the world frame moved forward by about the planned 2 steps
+    // (2 × 45 mm), the centre of pressure and the support polygon were published.
+    let base = v["base"].as_array().unwrap();
+    assert_eq!(base[0]["frame"], "world");
+    let dx = base[base.len() - 1]["x"].as_f64().unwrap() - base[0]["x"].as_f64().unwrap();
+    assert!((0.07..0.11).contains(&dx), "base moved {dx} m");
+    assert!(v["cop_count"].as_u64().unwrap() > 500);
+    let sizes: Vec<u64> = v["polygon_sizes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_u64().unwrap())
+        .collect();
+    assert!(
+        sizes.contains(&4),
+        "single-support polygons (one sole): {sizes:?}"
+    );
+    assert!(
+        sizes.iter().any(|&s| s > 4),
+        "double-support polygons: {sizes:?}"
+    );
+}

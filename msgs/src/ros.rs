@@ -356,7 +356,7 @@ pub fn context_for(domain: u16, range: DiscoveryRange) -> Result<Context, RosErr
 /// QoS profiles of the fleet's topics.
 pub mod qos {
     use ros2_client::QosProfile;
-    use ros2_client::qos::{Durability, History};
+    use ros2_client::qos::{Durability, History, Reliability, WhenFull};
 
     /// rclpy's default for publishers and subscriptions (depth 10): reliable, volatile,
     /// keep last 10. Used for every command and state topic, as ROS tools expect.
@@ -364,6 +364,19 @@ pub mod qos {
         QosProfile::publisher_default()
             .durability(Durability::Volatile)
             .history(History::KeepLast { depth: 10 })
+    }
+
+    /// What the fleet's publishers use: [`default`] as the other side sees it (reliable,
+    /// volatile), with 1 s of unacknowledged samples at 100 Hz in the send window, and a full
+    /// window fails the publish at once instead of waiting: a slow observer (a loaded
+    /// rclpy, RViz or Foxglove) costs that observer samples, never the control loop its
+    /// time.
+    pub fn publisher() -> QosProfile {
+        default()
+            .history(History::KeepLast { depth: 100 })
+            .reliability(Reliability::Reliable {
+                when_full: WhenFull::Fail,
+            })
     }
 }
 
@@ -797,6 +810,8 @@ pub struct RosNode {
     pub log: Log,
     // The node keeps its DDS participant alive through this.
     _context: Context,
+    /// When each throttled message was last logged, and how many were held back since.
+    throttled: std::sync::Mutex<BTreeMap<String, (std::time::Instant, u64)>>,
 }
 
 impl std::fmt::Debug for RosNode {
@@ -837,6 +852,7 @@ impl RosNode {
             setup,
             log,
             _context: context,
+            throttled: std::sync::Mutex::new(BTreeMap::new()),
         })
     }
 
@@ -857,7 +873,7 @@ impl RosNode {
     ) -> Result<ros2_client::Publisher<M>, RosError> {
         let topic = self.topic::<M>(name)?;
         self.node
-            .create_publisher::<M>(&topic, None)
+            .create_publisher::<M>(&topic, Some(qos::publisher()))
             .map_err(dds_err(format!("publisher {name}")))
     }
 
@@ -894,5 +910,28 @@ impl RosNode {
     /// Logs an error.
     pub fn error(&self, msg: &str) {
         self.log.error(&self.node, msg);
+    }
+
+    /// Logs an error at most once a second per `key`, saying how many were held back.
+    pub fn error_throttled(&self, key: &str, msg: &str) {
+        let Ok(mut t) = self.throttled.lock() else {
+            return self.error(msg);
+        };
+        let now = std::time::Instant::now();
+        match t.get_mut(key) {
+            Some((last, held)) if now.duration_since(*last) < std::time::Duration::from_secs(1) => {
+                *held += 1;
+            }
+            entry => {
+                let held = entry.map_or(0, |e| e.1);
+                t.insert(key.to_owned(), (now, 0));
+                drop(t);
+                if held > 0 {
+                    self.error(&format!("{msg} ({held} more like it in the last second)"));
+                } else {
+                    self.error(msg);
+                }
+            }
+        }
     }
 }

@@ -4,7 +4,7 @@ Run inside a private network namespace (the Rust test does it). It starts the fl
 a ROS user would (`ros2 topic pub`, `ros2 param get/set`, kill a node, Ctrl-C the launcher)
 and prints what it saw as one JSON object on stdout. The assertions are the Rust test's.
 
-    python fleet_peer.py walk|watchdog|launch BIN_DIR [PARAMS_YAML]
+    python fleet_peer.py walk|watchdog|launch|sim BIN_DIR [PARAMS_YAML]
 """
 
 import json
@@ -55,10 +55,15 @@ class Peer:
 
     def spin(self, seconds, until=None):
         end = time.monotonic() + seconds
+        next_check = 0.0
         while time.monotonic() < end:
             rclpy.spin_once(self.node, timeout_sec=0.005)
-            if until is not None and until():
-                return True
+            # The condition (a graph query, a scan of what arrived) at most every 20 ms, so
+            # that a busy stream does not starve the spinning.
+            if until is not None and time.monotonic() >= next_check:
+                next_check = time.monotonic() + 0.02
+                if until():
+                    return True
         return False
 
     def node_names(self):
@@ -244,10 +249,66 @@ def scenario_launch(bin_dir, params):
     return out
 
 
+def scenario_sim(bin_dir, params):
+    """`biped launch --backend sim`: the simulator in real time, watched and commanded by a
+    plain rclpy node (no use_sim_time), as a user with RViz or Foxglove would."""
+    from geometry_msgs.msg import PointStamped, PolygonStamped, PoseStamped
+    from rosgraph_msgs.msg import Clock
+
+    biped = os.path.join(bin_dir, "biped")
+    log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test") + "-sim"
+    # The observer is up first, as RViz usually is.
+    peer = Peer()
+    peer.spin(1.0)
+    launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--log-dir", log_dir],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    n = peer.node
+    qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+    clock, base, cop, poly = [], [], [], []
+    n.create_subscription(Clock, "/clock", lambda m: clock.append(
+        {"wall": peer.now(), "t": m.clock.sec + m.clock.nanosec * 1e-9}), qos)
+    n.create_subscription(PoseStamped, "/sim/base_pose", lambda m: base.append(
+        {"stamp": stamp_ns(m.header), "frame": m.header.frame_id,
+         "x": m.pose.position.x, "y": m.pose.position.y, "z": m.pose.position.z}), qos)
+    n.create_subscription(PointStamped, "/sim/cop", lambda m: cop.append(
+        {"stamp": stamp_ns(m.header), "x": m.point.x, "y": m.point.y}), qos)
+    n.create_subscription(PolygonStamped, "/sim/support_polygon", lambda m: poly.append(
+        {"stamp": stamp_ns(m.header), "points": len(m.polygon.points)}), qos)
+    global NODES
+    NODES = NODES + ["sim_bridge"]
+    out = {"nodes_seen": peer.wait_for_nodes(60.0), "node_names": peer.node_names()}
+    out["flowing"] = peer.spin(60.0, lambda: len(peer.states) > 20 and len(clock) > 20)
+    out["matched"] = peer.wait_for_subscribers(peer.walk_pub, 20.0)
+    walk_from = len(clock)
+    peer.walk(2)
+    out["walked"] = peer.spin(90.0, peer.idle_after_walking)
+    peer.spin(1.0)
+    out["clock"] = clock[walk_from:]
+    out["base"] = base
+    out["cop"] = cop[-200:]
+    out["cop_count"] = len(cop)
+    out["polygon_sizes"] = sorted({p["points"] for p in poly})
+    last = peer.states[-1] if peer.states else {"name": [], "position": []}
+    out["joint_state_names"] = last["name"]
+    out["joint_state_stamps"] = [s["t"] for s in peer.states[-50:]]
+    out["clock_values"] = [c["t"] for c in clock[-400:]]
+    launcher.send_signal(signal.SIGINT)
+    try:
+        stdout, stderr = launcher.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        launcher.kill()
+        stdout, stderr = launcher.communicate()
+    out["launcher_returncode"] = launcher.returncode
+    out["launcher_stderr"] = stderr[-2000:]
+    out["rosout_errors"] = [m for m in peer.rosout if m["level"] >= 40]
+    return out
+
+
 def main():
     scenario, bin_dir = sys.argv[1], sys.argv[2]
     params = sys.argv[3] if len(sys.argv) > 3 else None
-    result = {"walk": scenario_walk, "watchdog": scenario_watchdog, "launch": scenario_launch}[scenario](bin_dir, params)
+    result = {"walk": scenario_walk, "watchdog": scenario_watchdog, "launch": scenario_launch,
+              "sim": scenario_sim}[scenario](bin_dir, params)
     json.dump(result, sys.stdout)
 
 

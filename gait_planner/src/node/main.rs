@@ -234,10 +234,13 @@ fn publish(
     phase: GaitPhase,
 ) {
     if let Err(e) = targets_pub.publish(targets) {
-        ros.error(&format!("publish gait/ankle_targets: {e:?}"));
+        ros.error_throttled(
+            "publish gait/ankle_targets",
+            &format!("publish gait/ankle_targets: {e}"),
+        );
     }
     if let Err(e) = phase_pub.publish(phase) {
-        ros.error(&format!("publish gait/phase: {e:?}"));
+        ros.error_throttled("publish gait/phase", &format!("publish gait/phase: {e}"));
     }
 }
 

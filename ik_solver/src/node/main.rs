@@ -141,7 +141,10 @@ fn run() -> anyhow::Result<()> {
                         }
                     }
                     if let Err(e) = publisher.publish(js) {
-                        ros.error(&format!("publish joint_commands: {e:?}"));
+                        ros.error_throttled(
+                            "publish joint_commands",
+                            &format!("publish joint_commands: {e}"),
+                        );
                     }
                 }
                 Err(why) => ros.warn(&why),

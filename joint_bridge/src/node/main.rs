@@ -237,7 +237,10 @@ fn run() -> anyhow::Result<()> {
                     effort: Vec::new(),
                 };
                 if let Err(e) = publisher.publish(msg) {
-                    ros.error(&format!("publish joint_states: {e:?}"));
+                    ros.error_throttled(
+                        "publish joint_states",
+                        &format!("publish joint_states: {e}"),
+                    );
                 }
             }
             (Ok(_), None) => {}

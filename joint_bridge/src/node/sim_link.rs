@@ -50,7 +50,7 @@ impl Sender {
         self.last_sent = Some(msg.clone());
         self.commands
             .publish(msg)
-            .map_err(|e| io(format!("publish sim/joint_commands: {e:?}")))
+            .map_err(|e| io(format!("publish sim/joint_commands: {e}")))
     }
 }
 

@@ -125,7 +125,7 @@ impl Outputs {
                     velocity: sim.joint_velocities_rad_s(),
                     effort: Vec::new(),
                 })
-                .map_err(|e| format!("{e:?}")),
+                .map_err(|e| e.to_string()),
         );
         check(
             "sim/base_pose",
@@ -146,7 +146,7 @@ impl Outputs {
                         },
                     },
                 })
-                .map_err(|e| format!("{e:?}")),
+                .map_err(|e| e.to_string()),
         );
         if let Some([x, y]) = contacts.cop_world_m {
             check(
@@ -156,7 +156,7 @@ impl Outputs {
                         header: header(&self.world_frame),
                         point: Point { x, y, z: 0.0 },
                     })
-                    .map_err(|e| format!("{e:?}")),
+                    .map_err(|e| e.to_string()),
             );
         }
         check(
@@ -176,16 +176,16 @@ impl Outputs {
                             .collect(),
                     },
                 })
-                .map_err(|e| format!("{e:?}")),
+                .map_err(|e| e.to_string()),
         );
         check(
             "/clock",
             self.clock
                 .publish(Clock { clock: t })
-                .map_err(|e| format!("{e:?}")),
+                .map_err(|e| e.to_string()),
         );
         for f in failed {
-            ros.error(&format!("publish {f}"));
+            ros.error_throttled("publish {f}", &format!("publish {f}"));
         }
     }
 }
@@ -378,7 +378,7 @@ fn run() -> anyhow::Result<()> {
                     let msg = format!("the robot fell at t = {:.3} s: {}", f.t_s, f.reason);
                     ros.error(&msg);
                     if let Err(e) = out.fall.publish(StringMsg { data: msg }) {
-                        ros.error(&format!("publish sim/fall: {e:?}"));
+                        ros.error_throttled("publish sim/fall", &format!("publish sim/fall: {e}"));
                     }
                 }
                 continue;
