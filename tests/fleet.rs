@@ -320,7 +320,10 @@ fn an_rclpy_peer_watches_and_walks_the_simulated_robot_in_real_time() {
     let wall_s = last["wall"].as_f64().unwrap() - first["wall"].as_f64().unwrap();
     assert!(sim_s > 5.0, "walk of {sim_s} s simulated");
     let rtf = sim_s / wall_s;
-    assert!(rtf < 1.05, "simulated time ran ahead of the wall clock: {rtf}x");
+    assert!(
+        rtf < 1.05,
+        "simulated time ran ahead of the wall clock: {rtf}x"
+    );
     let ticks: Vec<f64> = clock.iter().map(|c| c["t"].as_f64().unwrap()).collect();
     assert!(
         ticks.windows(2).all(|w| w[1] >= w[0]),

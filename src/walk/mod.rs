@@ -200,6 +200,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     executor.spawn(spinner.spin()).detach();
 
     let wall0 = Instant::now();
+    let mut first_clock_wall: Option<Instant> = None;
     let mut rec = Recording::default();
     let result: anyhow::Result<()> = smol::block_on(executor.run(async {
         // 1. The planner listens: send the command, a few times (it ignores repeats of a
@@ -250,6 +251,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
             if let Some(Ok((c, _))) = got {
                 rec.clock_ns = rec.clock_ns.max(c.clock.to_nanos());
                 last_clock_wall = Instant::now();
+                first_clock_wall.get_or_insert(last_clock_wall);
             }
             rec.drain(&phase, &commands, &states, &base, &cop, &support, &fall);
             if let Some(why) = fleet.failed() {
@@ -282,9 +284,20 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         Ok(())
     }));
     let wall_s = wall0.elapsed().as_secs_f64();
+    let stepping_wall_s = first_clock_wall.map_or(wall_s, |t| t.elapsed().as_secs_f64());
     fleet.stop(false);
     result?;
-    let summary = report::summarize(&model, &planner, &plan, &rec, o, wall_s)?;
+    let summary = report::summarize(
+        &model,
+        &planner,
+        &plan,
+        &rec,
+        o,
+        report::WallTimes {
+            total_s: wall_s,
+            stepping_s: stepping_wall_s,
+        },
+    )?;
     let mut files = Vec::new();
     let report_path = o.out.join("report.json");
     std::fs::write(

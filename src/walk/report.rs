@@ -51,7 +51,7 @@ pub struct WalkSummary {
     pub simulated_s: f64,
     /// Wall-clock time of the run, start-up included (s).
     pub wall_s: f64,
-    /// Simulated seconds per wall-clock second.
+    /// Simulated seconds per wall-clock second, from the first `/clock` to the end.
     pub real_time_factor: f64,
     /// Messages that could not be decoded, by topic.
     pub unreadable_messages: BTreeMap<String, u64>,
@@ -80,6 +80,15 @@ pub fn joints_in_model_order(
         .collect()
 }
 
+/// Wall-clock times of a run (s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WallTimes {
+    /// From `biped walk`'s start to the end of recording.
+    pub total_s: f64,
+    /// From the first `/clock` to the end of recording: the simulation's own time.
+    pub stepping_s: f64,
+}
+
 /// The measures of the recorded walk.
 pub fn summarize(
     model: &BipedModel,
@@ -87,7 +96,7 @@ pub fn summarize(
     plan: &[GaitSample],
     rec: &Recording,
     o: &WalkOptions,
-    wall_s: f64,
+    wall: WallTimes,
 ) -> anyhow::Result<WalkSummary> {
     let start_ns = rec
         .walk_start_ns()

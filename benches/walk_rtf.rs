@@ -1,0 +1,129 @@
+//! Real-time factor (simulated seconds per wall-clock second) of the simulated walk:
+//!
+//! 1. bare physics: MuJoCo stepping the default robot at 1 kHz, servo targets held;
+//! 2. the walk played in-process: the planned joint targets (sag-compensated) set every
+//!    10 ms tick, plus the walk measures, no middleware;
+//! 3. `biped walk`: the whole fleet (gait_planner, ik_solver, joint_bridge, sim_bridge as
+//!    separate processes, DDS over loopback) in lockstep, simulated time only advancing once
+//!    every node has answered each 10 ms tick; its own report's figure (from the first
+//!    `/clock` on: process start-up and discovery excluded).
+//!
+//! `cargo build --release --workspace && cargo bench --bench walk_rtf` (the fleet runs in a
+//! private network namespace: root, `unshare -n`). Prints a Markdown table.
+
+use std::path::PathBuf;
+use std::process::{Command, ExitCode};
+use std::time::Instant;
+
+use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
+use ik_solver::{BipedModel, DEFAULT_URDF};
+use sim_bridge::{Interpolation, PlayOptions, Sim, SimConfig, run_plan};
+
+const STEPS: u32 = 10;
+const RUNS: usize = 3;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn bin_dir() -> PathBuf {
+    let mut dir = std::env::current_exe()
+        .ok()
+        .and_then(|e| e.parent().map(PathBuf::from))
+        .unwrap_or_default();
+    if dir.ends_with("deps") {
+        dir.pop();
+    }
+    dir
+}
+
+fn main() -> ExitCode {
+    // `cargo bench` passes `--bench`; nothing to parse.
+    let model = BipedModel::from_urdf_str(DEFAULT_URDF, None).expect("built-in robot");
+    let plan = GaitPlanner::new(model, GaitParams::default())
+        .expect("default gait")
+        .plan(WalkRequest::Steps(STEPS))
+        .expect("plan");
+    let plan_s = plan.last().map_or(0.0, |s| s.t_s) - plan[0].t_s;
+
+    // 1. Bare physics.
+    let mut bare = Vec::new();
+    for _ in 0..RUNS {
+        let mut sim = Sim::from_urdf_str(DEFAULT_URDF, None, &SimConfig::default()).expect("sim");
+        sim.stand(&plan[0].joints_rad).expect("stand");
+        let t = Instant::now();
+        sim.step(plan_s).expect("step");
+        bare.push(plan_s / t.elapsed().as_secs_f64());
+    }
+    // 2. The plan played in-process.
+    let mut played = Vec::new();
+    for _ in 0..RUNS {
+        let mut sim = Sim::from_urdf_str(DEFAULT_URDF, None, &SimConfig::default()).expect("sim");
+        let options = PlayOptions {
+            compensate: true,
+            interpolation: Interpolation::Hold,
+            tail_s: 0.0,
+        };
+        let t = Instant::now();
+        let report = run_plan(&mut sim, &plan, &options).expect("play");
+        assert!(report.fell.is_none(), "the walk fell: {:?}", report.fell);
+        played.push(sim.time_s() / t.elapsed().as_secs_f64());
+    }
+    // 3. The fleet in lockstep.
+    let biped = bin_dir().join("biped");
+    if !bin_dir().join("sim_bridge").is_file() {
+        eprintln!(
+            "node binaries not built in {}: run `cargo build --release --workspace` first",
+            bin_dir().display()
+        );
+        return ExitCode::FAILURE;
+    }
+    let mut fleet = Vec::new();
+    let mut fleet_wall = Vec::new();
+    for run in 0..RUNS {
+        let out = std::env::temp_dir().join(format!("biped-rtf-{}-{run}", std::process::id()));
+        let status = Command::new("unshare")
+            .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
+            .arg(&biped)
+            .args(["walk", "--steps", &STEPS.to_string(), "--out"])
+            .arg(&out)
+            .env("ROS_DOMAIN_ID", "90")
+            .stdout(std::process::Stdio::null())
+            .status()
+            .expect("unshare runs (root needed)");
+        if !status.success() {
+            eprintln!("biped walk failed; logs in {}", out.join("logs").display());
+            return ExitCode::FAILURE;
+        }
+        let report: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join("report.json")).expect("report.json"),
+        )
+        .expect("report is JSON");
+        let rtf = report["real_time_factor"].as_f64().unwrap_or(0.0);
+        fleet.push(rtf);
+        fleet_wall.push(0.01 / rtf);
+        let _ = std::fs::remove_dir_all(&out);
+    }
+    println!(
+        "{} steps ({plan_s:.1} s of walk), median of {RUNS} runs, 1 kHz physics, 100 Hz control\n",
+        STEPS
+    );
+    println!("| what runs | real-time factor | wall time per 10 ms tick |");
+    println!("|---|---:|---:|");
+    for (what, rtf) in [
+        ("bare physics (MuJoCo, targets held)", median(bare)),
+        (
+            "plan played in-process (targets every tick, measures)",
+            median(played),
+        ),
+    ] {
+        println!("| {what} | {rtf:.1}x | {:.3} ms |", 10.0 / rtf);
+    }
+    println!(
+        "| `biped walk`: the fleet over DDS in lockstep | {:.1}x | {:.3} ms |",
+        median(fleet),
+        median(fleet_wall) * 1e3
+    );
+    ExitCode::SUCCESS
+}
