@@ -195,9 +195,9 @@ pub fn summarize(
         max_joint_tracking_error_rad: worst_err,
         max_joint_tracking_error_joint: worst_joint,
         simulated_s,
-        wall_s,
-        real_time_factor: if wall_s > 0.0 {
-            simulated_s / wall_s
+        wall_s: wall.total_s,
+        real_time_factor: if wall.stepping_s > 0.0 {
+            simulated_s / wall.stepping_s
         } else {
             0.0
         },
