@@ -618,3 +618,54 @@ fn the_joint_bridge_drives_the_simulator() {
         .unwrap_err();
     assert!(e.to_string().contains("tail"), "{e}");
 }
+
+/// The measurement behind the default `shift_duration_s`: the stop-anywhere experiment for
+/// several shift durations and seeds, worst sole motion and base motion per duration.
+/// `cargo nextest run -p sim_bridge --test physics --run-ignored only --no-capture stop_anywhere_survey`
+#[test]
+#[ignore = "a measurement (about a minute), not a check"]
+fn stop_anywhere_survey() {
+    let mut rows = Vec::new();
+    for shift_s in [1.0, 1.25, 1.5, 2.0] {
+        let params = GaitParams {
+            shift_duration_s: shift_s,
+            ..GaitParams::default()
+        };
+        let (mut touch, mut loaded, mut early, mut late, mut fell) =
+            (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0);
+        for seed in [
+            0x5EED_2024_0B1B_ED20u64,
+            0x5EED_2024_0B1B_ED22,
+            0x00DD_BA11_5EED_0003,
+        ] {
+            eprintln!("shift {shift_s} s, seed {seed:#x}");
+            for f in freeze_experiment(params.clone(), seed) {
+                fell += usize::from(f.fell.is_some());
+                early = early.max(f.base_early_m);
+                late = late.max(f.base_late_m);
+                for k in 0..2 {
+                    let m = f.lift_m[k].max(f.slide_m[k]);
+                    if f.load[k] > sim_bridge::LOADED_FRACTION {
+                        touch = touch.max(m);
+                    }
+                    if f.load[k] >= 0.2 {
+                        loaded = loaded.max(m);
+                    }
+                }
+            }
+        }
+        rows.push((shift_s, touch, loaded, early, late, fell));
+    }
+    eprintln!(
+        "shift (s)  worst lift/slide, soles > 1 % (mm)  ... >= 20 % (mm)  base 0-0.5 s (mm)  base 0.5-2 s (mm)  falls"
+    );
+    for (s, t, l, e, la, f) in rows {
+        eprintln!(
+            "{s:9.2}  {:32.2}  {:14.2}  {:17.2}  {:17.3}  {f}",
+            t * 1e3,
+            l * 1e3,
+            e * 1e3,
+            la * 1e3
+        );
+    }
+}
