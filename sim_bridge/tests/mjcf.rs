@@ -5,7 +5,8 @@ use std::path::PathBuf;
 
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::{BipedModel, DEFAULT_URDF};
-use sim_bridge::{JointMap, PlayOptions, Sim, SimConfig, SimError, run_plan};
+use joint_bridge::{Backend, JointSpec};
+use sim_bridge::{JointMap, PlayOptions, Sim, SimBackend, SimConfig, SimError, run_plan};
 
 const STEPS: u32 = 20;
 
@@ -137,6 +138,37 @@ fn the_scene_robot_stands_on_its_soles() {
         }
     }
     assert!(sim.fallen().is_none());
+}
+
+#[test]
+fn the_joint_bridge_drives_the_scene_robot() {
+    let model = BipedModel::from_urdf_str(DEFAULT_URDF, None).unwrap();
+    let joints = JointSpec::from_robot(model.robot());
+    let mut backend = SimBackend::new(DEFAULT_URDF, SimConfig::default())
+        .with_mjcf(data("biped20_scene.xml"), map());
+    let measured = backend.configure(&joints).unwrap().unwrap();
+    assert_eq!(measured.len(), joints.len());
+    backend.activate().unwrap();
+    let elbow = joints.iter().position(|j| j.name == "l_elbow").unwrap();
+    let mut q = vec![0.0; joints.len()];
+    q[elbow] = -0.5;
+    backend.write(0.0, &q).unwrap();
+    let reading = backend.read(0.5).unwrap();
+    assert!(reading.measured);
+    assert!(
+        (reading.positions_rad[elbow] + 0.5).abs() < 0.01,
+        "elbow at {}",
+        reading.positions_rad[elbow]
+    );
+    let sim = backend.sim().unwrap();
+    assert!(sim.fallen().is_none());
+    assert_eq!(sim.config().kp_nm_per_rad, 30.0);
+    // A bad scene is reported by configure, naming the file.
+    let e = SimBackend::new(DEFAULT_URDF, SimConfig::default())
+        .with_mjcf(data("no_such_scene.xml"), map())
+        .configure(&joints)
+        .unwrap_err();
+    assert!(e.to_string().contains("no_such_scene.xml"), "{e}");
 }
 
 /// Builds from edited scene and map texts; returns the error text.
