@@ -59,7 +59,7 @@ impl Default for GaitParams {
         Self {
             step_length_m: 0.0,
             step_duration_s: 1.0,
-            shift_duration_s: 1.0,
+            shift_duration_s: 2.0,
             crouch_duration_s: 1.0,
             foot_lift_m: 0.0,
             hip_height_m: 0.0,

@@ -105,8 +105,8 @@ fn walk_and_stop(stop_at_s: f64) -> Vec<GaitSample> {
 
 #[test]
 fn stop_in_every_phase_ends_at_the_next_feet_together_point() {
-    // Defaults: 1 s per phase. Continuous walk: crouch [0,1], shift (1,2], half_step(L) (2,3],
-    // shift (3,4], step(R) (4,5], shift (5,6], step(L) (6,7], ...
+    // Defaults: 1 s crouch and swings, 2 s shifts. Continuous walk: crouch [0,1], shift (1,3],
+    // half_step(L) (3,4], shift (4,6], step(R) (6,7], shift (7,9], step(L) (9,10], ...
     let base = [
         "crouch",
         "shift",
@@ -127,15 +127,15 @@ fn stop_in_every_phase_ends_at_the_next_feet_together_point() {
         // In the crouch: the feet are together already; the crouch finishes and the walk ends.
         (0.5, closing(1, &[])),
         // In the first shift: no foot has left; the CoM comes back to the middle.
-        (1.5, closing(2, &["center"])),
+        (2.0, closing(2, &["center"])),
         // In the half step: the foot lands first, then the trailing foot comes level.
-        (2.5, closing(3, &["shift", "final_half_step(R)", "center"])),
+        (3.5, closing(3, &["shift", "final_half_step(R)", "center"])),
         // In the diagonal shift: it finishes, then the final half step instead of a step.
-        (3.5, closing(4, &["final_half_step(R)", "center"])),
+        (5.0, closing(4, &["final_half_step(R)", "center"])),
         // In a full step (right foot in the air): it lands first.
-        (4.5, closing(5, &["shift", "final_half_step(L)", "center"])),
-        (5.5, closing(6, &["final_half_step(L)", "center"])),
-        (6.5, closing(7, &["shift", "final_half_step(R)", "center"])),
+        (6.5, closing(5, &["shift", "final_half_step(L)", "center"])),
+        (8.0, closing(6, &["final_half_step(L)", "center"])),
+        (9.5, closing(7, &["shift", "final_half_step(R)", "center"])),
     ];
     for (t, want) in cases {
         let samples = walk_and_stop(t);
@@ -163,7 +163,9 @@ fn stop_in_every_phase_ends_at_the_next_feet_together_point() {
 #[test]
 fn stop_in_the_closing_phases_changes_nothing() {
     let full = plan(1, GaitParams::default());
-    for stop_at in [4.5, 5.5] {
+    // One step: crouch [0,1], shift (1,3], half_step (3,4], shift (4,6], final_half_step
+    // (6,7], center (7,9].
+    for stop_at in [6.5, 8.0] {
         let mut p = planner(GaitParams::default());
         p.request(WalkRequest::Steps(1));
         let mut out = Vec::new();
@@ -189,8 +191,8 @@ fn a_new_step_count_during_a_walk_counts_from_the_next_swing() {
     let mut out = Vec::new();
     for k in 0..100_000 {
         let t = k as f64 / 100.0;
-        if k == 250 {
-            // During the half step: 3 more swings after it.
+        if k == 350 {
+            // During the half step (3 s to 4 s): 3 more swings after it.
             p.request(WalkRequest::Steps(3));
         }
         let s = p.update(t).unwrap();

@@ -166,13 +166,15 @@ fn one_kilohertz_walk_is_as_smooth() {
     )
     .unwrap();
     let samples = planner.plan(WalkRequest::Steps(2)).unwrap();
-    assert_eq!(samples.len(), 8001);
+    // Crouch 1 s, shift 2 s, half step 1 s, shift 2 s, step 1 s, shift 2 s, final half
+    // step 1 s, centring 2 s: 12 s at 1 kHz, both ends included.
+    assert_eq!(samples.len(), 12001);
     check_walk(&model, &planner, &samples);
 }
 
 #[test]
 fn margin_short_of_the_minimum_is_refused_naming_phase_and_shortfall() {
-    // With the CoM over the stance sole's centre, the first shift ends 0.030 m (half the sole
+    // With the CoM over the stance sole's centre, the first shift (1 s to 3 s) ends 0.030 m (half the sole
     // width) from the support polygon's outer edge: a 0.032 m minimum cannot be kept.
     let err = GaitPlanner::new(
         default_model(),
@@ -192,7 +194,7 @@ fn margin_short_of_the_minimum_is_refused_naming_phase_and_shortfall() {
         } => {
             assert_eq!(*phase, PhaseKind::Shift);
             assert!(
-                *t_s > 1.0 && *t_s <= 2.0,
+                *t_s > 1.0 && *t_s <= 3.0,
                 "during the first shift, t = {t_s}"
             );
             assert!(*margin_m < 0.032 && *margin_m > 0.030, "{margin_m}");

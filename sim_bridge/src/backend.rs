@@ -15,7 +15,10 @@
 
 use joint_bridge::{Backend, BackendError, JointSpec, Lifecycle, Reading};
 
+use std::path::PathBuf;
+
 use crate::config::SimConfig;
+use crate::mjcf::JointMap;
 use crate::sim::Sim;
 
 const NAME: &str = "sim";
@@ -25,6 +28,7 @@ const NAME: &str = "sim";
 pub struct SimBackend {
     urdf: String,
     cfg: SimConfig,
+    scene: Option<(PathBuf, JointMap)>,
     initial_rad: Option<Vec<f64>>,
     sim: Option<Sim>,
     state: Lifecycle,
@@ -42,6 +46,7 @@ impl SimBackend {
         Self {
             urdf: urdf.into(),
             cfg,
+            scene: None,
             initial_rad: None,
             sim: None,
             state: Lifecycle::Unconfigured,
@@ -55,6 +60,13 @@ impl SimBackend {
     /// instead of zeros.
     pub fn with_initial_positions(mut self, joints_rad: Vec<f64>) -> Self {
         self.initial_rad = Some(joints_rad);
+        self
+    }
+
+    /// Simulate the MJCF scene at `path` instead of a model built from the URDF, its names
+    /// tied to the URDF's by `map` (see [`Sim::from_mjcf_file`]).
+    pub fn with_mjcf(mut self, path: impl Into<PathBuf>, map: JointMap) -> Self {
+        self.scene = Some((path.into(), map));
         self
     }
 
@@ -110,8 +122,11 @@ impl Backend for SimBackend {
             backend: NAME.into(),
             why,
         };
-        let mut sim =
-            Sim::from_urdf_str(&self.urdf, None, &self.cfg).map_err(|e| open(e.to_string()))?;
+        let built = match &self.scene {
+            Some((path, map)) => Sim::from_mjcf_file(path, map, &self.urdf, None, &self.cfg),
+            None => Sim::from_urdf_str(&self.urdf, None, &self.cfg),
+        };
+        let mut sim = built.map_err(|e| open(e.to_string()))?;
         let mut map = Vec::with_capacity(joints.len());
         for j in joints {
             let i = sim
@@ -130,7 +145,7 @@ impl Backend for SimBackend {
             .clone()
             .unwrap_or_else(|| vec![0.0; sim.joint_names().len()]);
         sim.stand(&initial).map_err(|e| open(e.to_string()))?;
-        sim.step(self.cfg.settle_s)
+        sim.step(sim.config().settle_s)
             .map_err(|e| open(e.to_string()))?;
         sim.set_torque(false);
         let q = sim.joint_positions_rad();

@@ -22,6 +22,23 @@ pub enum SimError {
         /// Its name.
         name: String,
     },
+    /// A joint map that does not fit the URDF or the MJCF scene: the key of the map (or
+    /// `(scene)` / `(file)`) and why.
+    #[error("joint map `{key}`: {why}")]
+    JointMap {
+        /// The key, as written in the YAML file (`joints.l_knee.actuator`).
+        key: String,
+        /// What is wrong.
+        why: String,
+    },
+    /// A scene actuator that is not a plain position servo on its joint.
+    #[error("MJCF actuator `{actuator}` {why}")]
+    Servo {
+        /// The actuator.
+        actuator: String,
+        /// What is wrong.
+        why: String,
+    },
     /// A configuration value out of its bounds.
     #[error("sim config `{key}` = {value}: {why}")]
     Config {

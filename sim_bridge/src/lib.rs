@@ -8,6 +8,10 @@
 //! of pressure against the support polygon of the loaded soles, and whether and why the
 //! robot fell.
 //!
+//! Or: an MJCF scene + a [`JointMap`] (scene joint, actuator and body names of the URDF's)
+//! → [`Sim::from_mjcf_str`] / [`Sim::from_mjcf_file`]: the same API, the URDF still the
+//! robot model of the plan and the compensation.
+//!
 //! Around it:
 //! - [`static_torques_nm`] / [`compensated_targets_rad`]: the servo-sag compensation of
 //!   ALGORITHM.md ("Position servos are springs"), from the URDF mass model alone;
@@ -24,6 +28,7 @@ mod backend;
 mod compensation;
 mod config;
 mod error;
+mod mjcf;
 mod mjmodel;
 mod sim;
 mod walk;
@@ -35,6 +40,7 @@ pub use compensation::{
 pub use config::SimConfig;
 pub use error::SimError;
 pub use ik_solver::{FootLoad, GRAVITY_M_S2};
+pub use mjcf::{JointMap, MappedJoint};
 pub use sim::{
     BODY_CONTACT_FRACTION, COP_MIN_FRACTION, ContactReading, Fall, FallReason, LOADED_FRACTION, Sim,
 };

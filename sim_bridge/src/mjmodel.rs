@@ -67,7 +67,7 @@ fn mujoco_err(stage: &'static str) -> impl Fn(MjEditError) -> SimError {
     }
 }
 
-fn find(
+pub(crate) fn find(
     model: &MjModel,
     obj: MjtObjBase,
     kind: &'static str,
@@ -240,7 +240,7 @@ pub(crate) fn build(
 
 /// The foot's sole: of the foot body's box geoms, the one whose lowest point (in the body
 /// frame, along the base's vertical at zero angles) is lowest.
-fn sole_geom(
+pub(crate) fn sole_geom(
     model: &MjModel,
     body: usize,
     biped: &BipedModel,

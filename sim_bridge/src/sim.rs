@@ -13,6 +13,7 @@ use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vect
 use crate::compensation::static_foot_loads;
 use crate::config::SimConfig;
 use crate::error::SimError;
+use crate::mjcf::{self, JointMap};
 use crate::mjmodel::{self, Layout};
 
 /// A sole counts as loaded (part of the support polygon) above this share of the weight.
@@ -161,6 +162,57 @@ impl Sim {
         cfg.validate()?;
         let biped = BipedModel::from_urdf_str(urdf, role_map)?;
         let (model, layout) = mjmodel::build(urdf, &biped, cfg)?;
+        Self::with_model(model, layout, cfg.clone(), biped)
+    }
+
+    /// Builds the simulator of a given MJCF scene (`mjcf`: the XML text; files it names are
+    /// not found, use [`Self::from_mjcf_file`] for a scene with meshes or includes) whose
+    /// robot is the one of `urdf`, its names tied by `map` (see [`crate::JointMap`]). The
+    /// URDF gives the robot model of the plans and the sag compensation; the scene gives
+    /// the physics: [`Self::config`] then holds the scene's servo gains, timestep and sole
+    /// friction, `cfg` only its fall bounds and `settle_s`. Starts as
+    /// [`Self::from_urdf_str`] does, with the scene's initial pose.
+    pub fn from_mjcf_str(
+        mjcf: &str,
+        map: &JointMap,
+        urdf: &str,
+        role_map: Option<&LegRoleMap>,
+        cfg: &SimConfig,
+    ) -> Result<Self, SimError> {
+        Self::from_mjcf(mjcf::Source::Text(mjcf), map, urdf, role_map, cfg)
+    }
+
+    /// [`Self::from_mjcf_str`] with the scene read from a file (meshes and includes found
+    /// relative to it).
+    pub fn from_mjcf_file(
+        path: impl AsRef<std::path::Path>,
+        map: &JointMap,
+        urdf: &str,
+        role_map: Option<&LegRoleMap>,
+        cfg: &SimConfig,
+    ) -> Result<Self, SimError> {
+        Self::from_mjcf(mjcf::Source::File(path.as_ref()), map, urdf, role_map, cfg)
+    }
+
+    fn from_mjcf(
+        source: mjcf::Source<'_>,
+        map: &JointMap,
+        urdf: &str,
+        role_map: Option<&LegRoleMap>,
+        cfg: &SimConfig,
+    ) -> Result<Self, SimError> {
+        cfg.validate()?;
+        let biped = BipedModel::from_urdf_str(urdf, role_map)?;
+        let (model, layout, effective) = mjcf::load(source, map, &biped, cfg)?;
+        Self::with_model(model, layout, effective, biped)
+    }
+
+    fn with_model(
+        model: Arc<MjModel>,
+        layout: Layout,
+        cfg: SimConfig,
+        biped: BipedModel,
+    ) -> Result<Self, SimError> {
         let total_mass_kg = model.body_subtreemass()[0];
         let gravity = model.opt().gravity;
         let weight_n = total_mass_kg * Vector3::from(gravity).norm();
@@ -172,7 +224,7 @@ impl Sim {
         let mut sim = Self {
             data,
             layout,
-            cfg: cfg.clone(),
+            cfg,
             biped,
             targets_rad: vec![0.0; n],
             torque_on: true,

@@ -263,40 +263,29 @@ fn freeze_experiment(params: GaitParams, seed: u64) -> Vec<Freeze> {
     out
 }
 
-/// Stop anywhere, the default walk: frozen at any instant, the robot stays standing and is
-/// still (base within 5 mm) from 0.5 s to 2 s after the freeze.
+/// Stop anywhere, the default walk: frozen at any instant, the robot stays standing, no sole
+/// that carries it (at least 20 % of the weight at the freeze) lifts or slides more than
+/// 2 mm, and it is still (base within 5 mm) from 0.5 s to 2 s after the freeze. The table
+/// printed gives, per freeze, the phase and the base motion in the first 0.5 s.
 ///
-/// Sole motion is printed, not asserted: with the default 1 s shifts a freeze near the
-/// shift's top speed rocks the robot onto the front sole, and the soles hop or slip up to
-/// about 3 mm and 5 mm (see the next test for where the 2 mm bound holds).
+/// The default 2 s shifts come from [`stop_anywhere_survey`] (3 seeds x 12 freezes per
+/// shift duration; worst motion of a sole carrying >= 20 % / > 1 % of the weight; base
+/// motion 0-0.5 s and 0.5-2 s; no falls anywhere):
+///
+/// | shift | sole >= 20 % | sole > 1 % | base 0-0.5 s | base 0.5-2 s |
+/// |---|---|---|---|---|
+/// | 1.0 s  | 2.03 mm | 4.31 mm | 4.43 mm | 1.65 mm |
+/// | 1.25 s | 2.62 mm | 3.26 mm | 3.14 mm | 1.61 mm |
+/// | 1.5 s  | 1.87 mm | 1.87 mm | 3.00 mm | 0.80 mm |
+/// | 2.0 s  | 0.81 mm | 3.19 mm | 1.68 mm | 1.43 mm |
+///
+/// 1.5 s passes without margin; 2 s keeps the loaded soles within 0.81 mm. A sole that only
+/// touches (a foot that has just landed, 1-20 % of the weight, at the start of a shift) can
+/// still settle up to about 3 mm whatever the shift duration: that is the landing, not the
+/// shift, and is printed, not asserted.
 #[test]
 fn stops_anywhere() {
     let freezes = freeze_experiment(GaitParams::default(), 0x5EED_2024_0B1B_ED20);
-    let mut failures = Vec::new();
-    for f in &freezes {
-        if let Some(r) = &f.fell {
-            failures.push(format!("t {}: fell ({r})", f.t_s));
-        }
-        if f.base_late_m >= 0.005 {
-            failures.push(format!(
-                "t {}: base moved {} m from 0.5 s to 2 s",
-                f.t_s, f.base_late_m
-            ));
-        }
-    }
-    assert!(failures.is_empty(), "{failures:#?}");
-}
-
-/// Stop anywhere with 2 s shifts: besides standing still, no sole that carries the robot
-/// (at least 20 % of the weight at the freeze) lifts or slides more than 2 mm. A sole that
-/// only touches (just landed, not yet loaded) may still bounce a little.
-#[test]
-fn stops_anywhere_with_soles_in_place_when_shifts_are_slower() {
-    let params = GaitParams {
-        shift_duration_s: 2.0,
-        ..GaitParams::default()
-    };
-    let freezes = freeze_experiment(params, 0x5EED_2024_0B1B_ED20 ^ 0x2);
     let mut failures = Vec::new();
     for f in &freezes {
         if let Some(r) = &f.fell {
@@ -617,4 +606,55 @@ fn the_joint_bridge_drives_the_simulator() {
         .configure(&[unknown])
         .unwrap_err();
     assert!(e.to_string().contains("tail"), "{e}");
+}
+
+/// The measurement behind the default `shift_duration_s`: the stop-anywhere experiment for
+/// several shift durations and seeds, worst sole motion and base motion per duration.
+/// `cargo nextest run -p sim_bridge --test physics --run-ignored only --no-capture stop_anywhere_survey`
+#[test]
+#[ignore = "a measurement (about a minute), not a check"]
+fn stop_anywhere_survey() {
+    let mut rows = Vec::new();
+    for shift_s in [1.0, 1.25, 1.5, 2.0] {
+        let params = GaitParams {
+            shift_duration_s: shift_s,
+            ..GaitParams::default()
+        };
+        let (mut touch, mut loaded, mut early, mut late, mut fell) =
+            (0.0f64, 0.0f64, 0.0f64, 0.0f64, 0);
+        for seed in [
+            0x5EED_2024_0B1B_ED20u64,
+            0x5EED_2024_0B1B_ED22,
+            0x00DD_BA11_5EED_0003,
+        ] {
+            eprintln!("shift {shift_s} s, seed {seed:#x}");
+            for f in freeze_experiment(params.clone(), seed) {
+                fell += usize::from(f.fell.is_some());
+                early = early.max(f.base_early_m);
+                late = late.max(f.base_late_m);
+                for k in 0..2 {
+                    let m = f.lift_m[k].max(f.slide_m[k]);
+                    if f.load[k] > sim_bridge::LOADED_FRACTION {
+                        touch = touch.max(m);
+                    }
+                    if f.load[k] >= 0.2 {
+                        loaded = loaded.max(m);
+                    }
+                }
+            }
+        }
+        rows.push((shift_s, touch, loaded, early, late, fell));
+    }
+    eprintln!(
+        "shift (s)  worst lift/slide, soles > 1 % (mm)  ... >= 20 % (mm)  base 0-0.5 s (mm)  base 0.5-2 s (mm)  falls"
+    );
+    for (s, t, l, e, la, f) in rows {
+        eprintln!(
+            "{s:9.2}  {:32.2}  {:14.2}  {:17.2}  {:17.3}  {f}",
+            t * 1e3,
+            l * 1e3,
+            e * 1e3,
+            la * 1e3
+        );
+    }
 }

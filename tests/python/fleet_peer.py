@@ -177,7 +177,7 @@ def scenario_watchdog(bin_dir, params):
     out = {"nodes_seen": peer.wait_for_nodes(), "matched": peer.wait_for_subscribers(peer.walk_pub)}
     out["flowing"] = peer.wait_for_flow()
     peer.walk(0)  # until stopped
-    # Into the walk (crouch 1 s, shift 1 s, half step): wait until the joints move, then a bit.
+    # Into the walk (crouch 1 s, then the 2 s shift): wait until the joints move, then a bit.
     first = peer.states[-1]["position"]
     out["moving"] = peer.spin(30.0, lambda: peer.states[-1]["position"] != first)
     peer.spin(1.5)
