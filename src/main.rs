@@ -76,6 +76,13 @@ enum Command {
         /// sections; over the built-in config/sim.yaml).
         #[arg(long, value_name = "YAML")]
         params: Option<PathBuf>,
+        /// A MuJoCo scene of the robot to simulate instead of building it from the URDF
+        /// (which still gives the kinematics); needs --joint-map.
+        #[arg(long, value_name = "MJCF", requires = "joint_map")]
+        mjcf: Option<PathBuf>,
+        /// YAML mapping the URDF's joints, links and soles to the scene's names.
+        #[arg(long, value_name = "YAML", requires = "mjcf")]
+        joint_map: Option<PathBuf>,
         /// Output folder: report.json, pictures, logs/.
         #[arg(long, value_name = "DIR", default_value = "out/walk")]
         out: PathBuf,
@@ -153,6 +160,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             steps,
             robot,
             params,
+            mjcf,
+            joint_map,
             out,
             real_time,
             settle,
@@ -164,6 +173,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 steps,
                 robot,
                 params,
+                scene: mjcf.zip(joint_map),
                 out,
                 real_time,
                 settle_s: settle,

@@ -1,6 +1,6 @@
 //! `biped walk`, the main job: the fleet (gait_planner, ik_solver, joint_bridge with the sim
 //! backend) and sim_bridge (MuJoCo) over DDS, in lockstep on simulated time. Each run is in a
-//! private network namespace with only loopback, on its own ROS_DOMAIN_ID (67-69), with
+//! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 67-69), with
 //! discovery restricted to this host by `biped walk` itself.
 
 use std::path::{Path, PathBuf};
@@ -170,4 +170,45 @@ fn bad_arguments_are_refused_by_name() {
     let r = walk(69, &out, &["--robot", "/nonexistent/robot.urdf"]);
     assert!(!r.status.success());
     assert!(String::from_utf8_lossy(&r.stderr).contains("/nonexistent/robot.urdf"));
+}
+
+/// A robot from an MJCF scene written for the tests (other names, its own contacts), mapped
+/// to the URDF's joints, walks through the whole fleet.
+#[test]
+fn a_scene_robot_walks_through_the_fleet_with_its_joint_map() {
+    let out = out_dir("scene");
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("sim_bridge/tests/data");
+    let scene = data.join("biped20_scene.xml");
+    let map = data.join("biped20_scene_map.yaml");
+    let run = walk(
+        59,
+        &out,
+        &[
+            "--steps",
+            "2",
+            "--mjcf",
+            scene.to_str().unwrap(),
+            "--joint-map",
+            map.to_str().unwrap(),
+        ],
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let r = report(&out);
+    assert!(r["fell"].is_null());
+    let (d, planned) = (num(&r, "distance_m"), num(&r, "planned_distance_m"));
+    assert!(
+        (d - planned).abs() < 0.1 * planned,
+        "walked {d} m of {planned} m"
+    );
+    let log = std::fs::read_to_string(out.join("logs/sim_bridge.log")).unwrap();
+    assert!(log.contains("biped20_scene.xml"), "{log}");
+    // A scene without its map is refused before anything starts.
+    let r = walk(59, &out, &["--mjcf", scene.to_str().unwrap()]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("--joint-map"));
+    let _ = std::fs::remove_dir_all(&out);
 }

@@ -41,6 +41,8 @@ pub struct WalkOptions {
     pub robot: Option<PathBuf>,
     /// ROS 2 parameter file for every node (gait and simulator parameters).
     pub params: Option<PathBuf>,
+    /// A MuJoCo scene of the robot and its joint map, instead of the URDF-built simulation.
+    pub scene: Option<(PathBuf, PathBuf)>,
     /// Output folder.
     pub out: PathBuf,
     /// Pace the simulation at real time (else as fast as the fleet answers).
@@ -133,19 +135,54 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         range,
         node_env: env,
     } = environment()?;
+    let mut node_params = vec![(
+        "sim_bridge".to_string(),
+        format!(
+            "real_time_factor:={}",
+            if o.real_time { "1.0" } else { "0.0" }
+        ),
+    )];
+    if let Some((scene, map_file)) = &o.scene {
+        // Checked here, so a bad scene is refused before anything starts; its servos'
+        // stiffness is the joint bridge's compensation stiffness.
+        let urdf = match &o.robot {
+            Some(p) => std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read robot {}", p.display()))?,
+            None => ik_solver::DEFAULT_URDF.to_owned(),
+        };
+        let map = sim_bridge::JointMap::from_yaml_file(map_file)
+            .with_context(|| format!("joint map {}", map_file.display()))?;
+        let sim = sim_bridge::Sim::from_mjcf_file(scene, &map, &urdf, None, &Default::default())
+            .with_context(|| {
+                format!(
+                    "scene {} with joint map {}",
+                    scene.display(),
+                    map_file.display()
+                )
+            })?;
+        let abs = |p: &PathBuf| {
+            std::fs::canonicalize(p).with_context(|| format!("{} not found", p.display()))
+        };
+        node_params.push((
+            "sim_bridge".into(),
+            format!("mjcf_file:={}", abs(scene)?.display()),
+        ));
+        node_params.push((
+            "sim_bridge".into(),
+            format!("joint_map_file:={}", abs(map_file)?.display()),
+        ));
+        node_params.push((
+            "joint_bridge".into(),
+            format!("sag_compensation_kp:={}", sim.config().kp_nm_per_rad),
+        ));
+    }
     let mut fleet = Fleet::new(LaunchOptions {
         backend: "sim".into(),
         robot: o.robot.clone(),
         params: o.params.clone(),
         namespace: "/".into(),
         log_dir: o.out.join("logs"),
-        node_params: vec![(
-            "sim_bridge".into(),
-            format!(
-                "real_time_factor:={}",
-                if o.real_time { "1.0" } else { "0.0" }
-            ),
-        )],
+        node_params,
         env,
     })?;
     for node in ["joint_bridge", "ik_solver", "gait_planner"] {

@@ -19,7 +19,9 @@
 //! load: the run is deterministic. `real_time_factor` paces the simulation against the wall
 //! clock (1 = real time; 0 = as fast as the fleet answers).
 //!
-//! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `lockstep`
+//! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `mjcf_file` and
+//! `joint_map_file` (a MuJoCo scene of the robot and its map to the URDF's names, instead of
+//! building the simulation from the URDF; the scene then owns its physics and servos), `lockstep`
 //! (true), `real_time_factor` (1.0), `clock_rate_hz` (100), `world_frame` (`world`), and the
 //! simulator settings of [`sim_bridge::SimConfig`] (`kp_nm_per_rad`, `kv_nm_s_per_rad`,
 //! `torque_limit_nm` (0 = each joint's URDF effort), `armature_kg_m2`, `timestep_s`,
@@ -38,7 +40,7 @@ use biped_msgs::msg::{
 };
 use biped_msgs::ros::{self, NodeSetup, RosNode};
 use ros2_client::{ParameterValue, Publisher};
-use sim_bridge::{Sim, SimConfig};
+use sim_bridge::{JointMap, Sim, SimConfig};
 
 const SIM_PARAMS: [&str; 8] = [
     "kp_nm_per_rad",
@@ -50,8 +52,10 @@ const SIM_PARAMS: [&str; 8] = [
     "fall_tilt_deg",
     "fall_height_drop_m",
 ];
-const NODE_PARAMS: [&str; 5] = [
+const NODE_PARAMS: [&str; 7] = [
     "robot_description_file",
+    "mjcf_file",
+    "joint_map_file",
     "lockstep",
     "real_time_factor",
     "clock_rate_hz",
@@ -225,8 +229,23 @@ fn run() -> anyhow::Result<()> {
         std::fs::read_to_string(&robot_file)
             .with_context(|| format!("robot_description_file `{robot_file}`"))?
     };
-    let mut sim = Sim::from_urdf_str(&urdf, None, &cfg)
-        .with_context(|| format!("robot_description_file `{robot_file}`"))?;
+    let mjcf_file = setup.str_param("mjcf_file", "")?;
+    let map_file = setup.str_param("joint_map_file", "")?;
+    let mut sim = match (mjcf_file.is_empty(), map_file.is_empty()) {
+        (true, true) => Sim::from_urdf_str(&urdf, None, &cfg)
+            .with_context(|| format!("robot_description_file `{robot_file}`"))?,
+        (false, false) => {
+            let map = JointMap::from_yaml_file(&map_file)
+                .with_context(|| format!("joint_map_file `{map_file}`"))?;
+            Sim::from_mjcf_file(&mjcf_file, &map, &urdf, None, &cfg).with_context(|| {
+                format!("mjcf_file `{mjcf_file}` with joint_map_file `{map_file}`")
+            })?
+        }
+        _ => anyhow::bail!(
+            "parameters `mjcf_file` = `{mjcf_file}` and `joint_map_file` = `{map_file}`: give both (a scene and its map to the URDF's names) or neither"
+        ),
+    };
+    let cfg = sim.config().clone();
     let period_ns = (1e9 / rate_hz).round() as i64;
     let steps_per_tick = (period_ns as f64 * 1e-9 / cfg.timestep_s).round() as u64;
     if steps_per_tick == 0
@@ -244,6 +263,14 @@ fn run() -> anyhow::Result<()> {
         (
             "robot_description_file".into(),
             ParameterValue::String(robot_file.clone()),
+        ),
+        (
+            "mjcf_file".into(),
+            ParameterValue::String(mjcf_file.clone()),
+        ),
+        (
+            "joint_map_file".into(),
+            ParameterValue::String(map_file.clone()),
         ),
         ("lockstep".into(), ParameterValue::Boolean(lockstep)),
         ("real_time_factor".into(), ParameterValue::Double(rtf)),
@@ -293,10 +320,16 @@ fn run() -> anyhow::Result<()> {
         .map(|(i, n)| (n.clone(), i))
         .collect();
     ros.info(&format!(
-        "ready: robot {} in MuJoCo ({} joints, {:.3} kg), {} Hz clock, {}, {}",
+        "ready: robot {} in MuJoCo from {} ({} joints, {:.3} kg, servos kp {} N·m/rad: joint_bridge's sag_compensation_kp should match), {} Hz clock, {}, {}",
         sim.biped().robot().name(),
+        if mjcf_file.is_empty() {
+            "the URDF".to_string()
+        } else {
+            format!("the scene {mjcf_file}")
+        },
         names.len(),
         sim.total_mass_kg(),
+        cfg.kp_nm_per_rad,
         rate_hz,
         if lockstep {
             "lockstep with the joint_bridge"
