@@ -36,7 +36,8 @@ pub struct Recording {
     pub cop: BTreeMap<i64, [f64; 2]>,
     /// Support polygon per tick (world x, y, m).
     pub support: BTreeMap<i64, Vec<[f64; 2]>>,
-    /// The fall report, if any, with the clock when it came (ns).
+    /// The fall report, if any: when it happened (ns; the simulator's `t = ... s`, else the
+    /// clock when the report came) and the report.
     pub fall: Option<(i64, String)>,
     /// Messages that could not be read, by topic.
     pub unreadable: BTreeMap<&'static str, u64>,
@@ -54,6 +55,26 @@ fn drain<M: serde::de::DeserializeOwned + 'static>(
             Ok(None) => break,
             Err(_) => *unreadable.entry(topic).or_default() += 1,
         }
+    }
+}
+
+/// The time in sim_bridge's fall report ("the robot fell at t = 4.001 s: ..."), ns.
+fn fall_time_ns(report: &str) -> Option<i64> {
+    let rest = report.split("t = ").nth(1)?;
+    let secs: f64 = rest.split(" s").next()?.trim().parse().ok()?;
+    secs.is_finite().then(|| (secs * 1e9).round() as i64)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_fall_time_is_read_from_the_report() {
+        assert_eq!(
+            super::fall_time_ns("the robot fell at t = 4.001 s: base tilted 30.1 deg"),
+            Some(4_001_000_000)
+        );
+        assert_eq!(super::fall_time_ns("fell"), None);
+        assert_eq!(super::fall_time_ns("the robot fell at t = NaN s: x"), None);
     }
 }
 
@@ -119,7 +140,8 @@ impl Recording {
         let clock = self.clock_ns;
         drain(fall, "sim/fall", u, |m| {
             if self.fall.is_none() {
-                self.fall = Some((clock, m.data));
+                let t = fall_time_ns(&m.data).unwrap_or(clock);
+                self.fall = Some((t, m.data));
             }
         });
     }
@@ -141,12 +163,19 @@ impl Recording {
             .map(|(&t, _)| t)
     }
 
-    /// When recording can stop (s): `tail_s` after the walk ended, or 0.5 s after a fall.
-    pub fn done_at_s(&self, tail_s: f64) -> Option<f64> {
+    /// When the recording ends (ns): `tail_s` after the walk ended, or 0.5 s after a fall.
+    /// What arrives later is not measured, so every run measures the same ticks.
+    pub fn end_ns(&self, tail_s: f64) -> Option<i64> {
         if let Some((t, _)) = &self.fall {
-            return Some(*t as f64 * 1e-9 + 0.5);
+            return Some(t + 500_000_000);
         }
-        self.walk_end_ns().map(|t| t as f64 * 1e-9 + tail_s)
+        self.walk_end_ns()
+            .map(|t| t + (tail_s * 1e9).round() as i64)
+    }
+
+    /// When recording can stop (s).
+    pub fn done_at_s(&self, tail_s: f64) -> Option<f64> {
+        self.end_ns(tail_s).map(|t| t as f64 * 1e-9)
     }
 
     /// One line of progress.

@@ -111,7 +111,8 @@ pub fn summarize(
     let mut monitor: Option<WalkMonitor> = None;
     let mut last: Option<(f64, Isometry3<f64>)> = None;
     let (mut worst_err, mut worst_joint) = (0.0f64, String::new());
-    for (&t, js) in rec.states.range(start_ns..) {
+    let stop_ns = rec.end_ns(o.tail_s).unwrap_or(i64::MAX);
+    for (&t, js) in rec.states.range(start_ns..=stop_ns) {
         let Some(base) = rec.base.get(&t) else {
             continue;
         };
@@ -174,7 +175,7 @@ pub fn summarize(
     let planned_distance_m = o.steps as f64 * c.step_length_m;
     let measured = monitor.report_at(t_end, &base_end, planned_distance_m);
     let walk_duration_s = end_ns.map_or(t_end, |e| e as f64 * 1e-9) - start_ns as f64 * 1e-9;
-    let simulated_s = rec.clock_ns as f64 * 1e-9;
+    let simulated_s = rec.clock_ns.min(stop_ns) as f64 * 1e-9;
     Ok(WalkSummary {
         robot: model.robot().name().to_owned(),
         steps: o.steps,
