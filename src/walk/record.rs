@@ -65,19 +65,6 @@ fn fall_time_ns(report: &str) -> Option<i64> {
     secs.is_finite().then(|| (secs * 1e9).round() as i64)
 }
 
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn the_fall_time_is_read_from_the_report() {
-        assert_eq!(
-            super::fall_time_ns("the robot fell at t = 4.001 s: base tilted 30.1 deg"),
-            Some(4_001_000_000)
-        );
-        assert_eq!(super::fall_time_ns("fell"), None);
-        assert_eq!(super::fall_time_ns("the robot fell at t = NaN s: x"), None);
-    }
-}
-
 impl Recording {
     /// Takes every message waiting.
     #[allow(clippy::too_many_arguments)]
@@ -194,5 +181,18 @@ impl Recording {
             .next_back()
             .map_or(f64::NAN, |b| b.translation.x);
         format!("t = {t:6.2} s  phase {phase:24}  base x = {x:+.3} m")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_fall_time_is_read_from_the_report() {
+        assert_eq!(
+            super::fall_time_ns("the robot fell at t = 4.001 s: base tilted 30.1 deg"),
+            Some(4_001_000_000)
+        );
+        assert_eq!(super::fall_time_ns("fell"), None);
+        assert_eq!(super::fall_time_ns("the robot fell at t = NaN s: x"), None);
     }
 }
