@@ -235,22 +235,7 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
         let (head, body) = root.split_vertically(TITLE_H_PX);
         draw_title(&head, &title, &subtitle)?;
         let (plot_area, legend_area) = body.split_horizontally(WIDTH_PX - LEGEND_W_PX);
-        let mut chart = ChartBuilder::on(&plot_area)
-            .margin(MARGIN_PX)
-            .x_label_area_size(X_LABELS_PX)
-            .y_label_area_size(Y_LABELS_PX)
-            .build_cartesian_2d(window.x.clone(), window.y.clone())?;
-        chart
-            .configure_mesh()
-            .x_desc("x forward (m)")
-            .y_desc("y left (m)")
-            .x_label_formatter(&|v| format!("{v:.2}"))
-            .y_label_formatter(&|v| format!("{v:.2}"))
-            .label_style(("sans-serif", TICK_FONT))
-            .axis_desc_style(("sans-serif", AXIS_FONT))
-            .light_line_style(BLACK.mix(0.04))
-            .bold_line_style(BLACK.mix(0.12))
-            .draw()?;
+        let mut chart = floor_chart(&plot_area, &window)?;
         for f in &feet {
             let colour = side_colour(f.side);
             let pts: Vec<(f64, f64)> = f.corners_m.iter().map(|c| (c[0], c[1])).collect();
@@ -306,6 +291,37 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
             ],
         )
     })
+}
+
+/// A chart of the floor seen from above over `window` (m): x forward to the right, y left
+/// upwards, labelled axes and a faint grid.
+pub(crate) fn floor_chart<'a, 'b>(
+    area: &'a Area<'b>,
+    window: &Window,
+) -> anyhow::Result<
+    ChartContext<
+        'a,
+        SVGBackend<'b>,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+> {
+    let mut chart = ChartBuilder::on(area)
+        .margin(MARGIN_PX)
+        .x_label_area_size(X_LABELS_PX)
+        .y_label_area_size(Y_LABELS_PX)
+        .build_cartesian_2d(window.x.clone(), window.y.clone())?;
+    chart
+        .configure_mesh()
+        .x_desc("x forward (m)")
+        .y_desc("y left (m)")
+        .x_label_formatter(&|v| format!("{v:.2}"))
+        .y_label_formatter(&|v| format!("{v:.2}"))
+        .label_style(("sans-serif", TICK_FONT))
+        .axis_desc_style(("sans-serif", AXIS_FONT))
+        .light_line_style(BLACK.mix(0.04))
+        .bold_line_style(BLACK.mix(0.12))
+        .draw()?;
+    Ok(chart)
 }
 
 // ---------------------------------------------------------------------------------------

@@ -383,6 +383,20 @@ pub mod qos {
 /// A parameter validator: `Err(reason)` refuses a set from a ROS peer.
 pub type ParameterCheck = Box<dyn Fn(&str, &ParameterValue) -> Result<(), String> + Send + Sync>;
 
+/// The check of a node whose parameters are all read at start-up: a set from a peer is
+/// refused with the reason (`use_sim_time` aside).
+pub fn read_at_startup() -> ParameterCheck {
+    Box::new(|name: &str, _: &ParameterValue| {
+        if name == "use_sim_time" {
+            Ok(())
+        } else {
+            Err(format!(
+                "{name} is read at start-up; restart the node to change it"
+            ))
+        }
+    })
+}
+
 /// Creates a node with parameter services and `/rosout` on, with the given parameters
 /// declared; `use_sim_time` makes its clock follow `/clock`.
 pub fn create_node(

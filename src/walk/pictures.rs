@@ -20,8 +20,8 @@ use super::record::Recording;
 use super::report::{WalkSummary, joints_in_model_order};
 use crate::plots::{
     BASE_COLOUR, COM_COLOUR, LEGEND_FONT, LEGEND_W_PX, LegendEntry, MARGIN_PX, Swatch, TICK_FONT,
-    TITLE_H_PX, Window, X_LABELS_PX, Y_LABELS_PX, draw_legend, draw_title, planted_footprints,
-    render, side_colour,
+    TITLE_H_PX, Window, X_LABELS_PX, Y_LABELS_PX, draw_legend, draw_title, floor_chart,
+    planted_footprints, render, side_colour,
 };
 
 const COP_COLOUR: RGBColor = RGBColor(255, 127, 14);
@@ -122,21 +122,7 @@ fn top_view(
         let (head, body) = root.split_vertically(TITLE_H_PX);
         draw_title(&head, &title, &subtitle)?;
         let (plot_area, legend_area) = body.split_horizontally(WIDTH_PX - LEGEND_W_PX);
-        let mut chart = ChartBuilder::on(&plot_area)
-            .margin(MARGIN_PX)
-            .x_label_area_size(X_LABELS_PX)
-            .y_label_area_size(Y_LABELS_PX)
-            .build_cartesian_2d(window.x.clone(), window.y.clone())?;
-        chart
-            .configure_mesh()
-            .x_desc("x forward (m)")
-            .y_desc("y left (m)")
-            .x_label_formatter(&|v| format!("{v:.2}"))
-            .y_label_formatter(&|v| format!("{v:.2}"))
-            .label_style(("sans-serif", TICK_FONT))
-            .light_line_style(BLACK.mix(0.04))
-            .bold_line_style(BLACK.mix(0.12))
-            .draw()?;
+        let mut chart = floor_chart(&plot_area, &window)?;
         for f in &feet {
             let colour = side_colour(f.side);
             let pts: Vec<(f64, f64)> = f.corners_m.iter().map(|c| (c[0] + dx, c[1] + dy)).collect();

@@ -229,17 +229,16 @@ fn to_msgs(
 fn publish(
     ros: &RosNode,
     targets_pub: &ros2_client::Publisher<AnkleTargets>,
-    targets: AnkleTargets,
     phase_pub: &ros2_client::Publisher<GaitPhase>,
-    phase: GaitPhase,
+    (phase, targets): &(GaitPhase, AnkleTargets),
 ) {
-    if let Err(e) = targets_pub.publish(targets) {
+    if let Err(e) = targets_pub.publish(targets.clone()) {
         ros.error_throttled(
             "publish gait/ankle_targets",
             &format!("publish gait/ankle_targets: {e}"),
         );
     }
-    if let Err(e) = phase_pub.publish(phase) {
+    if let Err(e) = phase_pub.publish(phase.clone()) {
         ros.error_throttled("publish gait/phase", &format!("publish gait/phase: {e}"));
     }
 }
@@ -339,14 +338,8 @@ fn run() -> anyhow::Result<()> {
             };
             if tick.repeat {
                 // The lockstep simulator asks again for this tick: same messages.
-                if let Some((phase, targets)) = &last_sent {
-                    publish(
-                        &ros,
-                        &targets_pub,
-                        targets.clone(),
-                        &phase_pub,
-                        phase.clone(),
-                    );
+                if let Some(sent) = &last_sent {
+                    publish(&ros, &targets_pub, &phase_pub, sent);
                 }
                 continue;
             }
@@ -405,15 +398,9 @@ fn run() -> anyhow::Result<()> {
                 ));
                 last_phase = Some((sample.phase, sample.step_index));
             }
-            let (phase, targets) = to_msgs(&sample, now, &base_frame);
-            publish(
-                &ros,
-                &targets_pub,
-                targets.clone(),
-                &phase_pub,
-                phase.clone(),
-            );
-            last_sent = Some((phase, targets));
+            let sent = to_msgs(&sample, now, &base_frame);
+            publish(&ros, &targets_pub, &phase_pub, &sent);
+            last_sent = Some(sent);
         }
         Ok(())
     }));

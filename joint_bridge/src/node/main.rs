@@ -138,16 +138,7 @@ fn run() -> anyhow::Result<()> {
             ParameterValue::Boolean(sim),
         ),
     ]);
-    let check = |name: &str, _: &ParameterValue| -> Result<(), String> {
-        if name == "use_sim_time" {
-            Ok(())
-        } else {
-            Err(format!(
-                "{name} is read at start-up; restart the node to change it"
-            ))
-        }
-    };
-    let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
+    let mut ros = RosNode::start(setup, &declared, Some(ros::read_at_startup()))?;
     let stop = ros::shutdown_flag()?;
     let sub = ros.subscription::<JointState>("joint_commands")?;
     let mut ticks = TickSource::new(&mut ros, rate_hz)?;

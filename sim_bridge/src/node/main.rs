@@ -292,16 +292,7 @@ fn run() -> anyhow::Result<()> {
     ] {
         declared.insert(k.into(), ParameterValue::Double(v));
     }
-    let check = |name: &str, _: &ParameterValue| -> Result<(), String> {
-        if name == "use_sim_time" {
-            Ok(())
-        } else {
-            Err(format!(
-                "{name} is read at start-up; restart the node to change it"
-            ))
-        }
-    };
-    let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
+    let mut ros = RosNode::start(setup, &declared, Some(ros::read_at_startup()))?;
     let stop = ros::shutdown_flag()?;
     let commands = ros.subscription::<JointState>("sim/joint_commands")?;
     let out = Outputs {
