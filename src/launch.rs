@@ -19,7 +19,7 @@ use nix::unistd::Pid;
 /// What to launch.
 #[derive(Debug, Clone)]
 pub struct LaunchOptions {
-    /// `mock` (more backends come with the simulator and serial boards).
+    /// `mock` or `serial` (the simulator comes with its issue).
     pub backend: String,
     /// Robot URDF, or the built-in robot.
     pub robot: Option<PathBuf>,
@@ -29,6 +29,46 @@ pub struct LaunchOptions {
     pub namespace: String,
     /// Folder for the nodes' logs.
     pub log_dir: PathBuf,
+    /// The serial board, with `--backend serial`.
+    pub serial: SerialArgs,
+}
+
+/// `--backend serial`: the board (passed to joint_bridge as parameters of the same names).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SerialArgs {
+    /// Serial protocol: dynamixel2, dynamixel1, maestro or ssc32.
+    #[arg(long, value_parser = ["dynamixel2", "dynamixel1", "maestro", "ssc32"])]
+    pub protocol: Option<String>,
+    /// Serial device, e.g. /dev/ttyUSB0.
+    #[arg(long, value_name = "DEV")]
+    pub port: Option<PathBuf>,
+    /// Baud rate.
+    #[arg(long, value_name = "N")]
+    pub baud: Option<u32>,
+    /// Calibration file. Default: config/calibration_<protocol>.yaml.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
+}
+
+/// The joint_bridge parameters for a serial board.
+fn serial_args(o: &LaunchOptions) -> anyhow::Result<Vec<String>> {
+    let s = &o.serial;
+    let (Some(protocol), Some(port), Some(baud)) = (&s.protocol, &s.port, s.baud) else {
+        anyhow::bail!("--backend serial needs --protocol, --port and --baud");
+    };
+    let calibration = match &s.calibration {
+        Some(c) => absolute(c)?,
+        None => absolute(Path::new(&format!("config/calibration_{protocol}.yaml")))?,
+    };
+    Ok([
+        format!("protocol:={protocol}"),
+        format!("port:={}", port.display()),
+        format!("baud:={baud}"),
+        format!("calibration_file:={}", calibration.display()),
+    ]
+    .into_iter()
+    .flat_map(|p| ["-p".to_string(), p])
+    .collect())
 }
 
 struct Running {
@@ -71,6 +111,9 @@ fn ros_args(o: &LaunchOptions, node: &str) -> anyhow::Result<Vec<String>> {
     if node == "joint_bridge" {
         args.push("-p".into());
         args.push(format!("backend:={}", o.backend));
+        if o.backend == "serial" {
+            args.extend(serial_args(o)?);
+        }
     }
     Ok(args)
 }
@@ -91,7 +134,12 @@ fn interrupt(children: &mut [Running], signal: Signal) {
 
 /// Runs the fleet until interrupted. Returns an error if a node failed.
 pub fn launch(o: &LaunchOptions) -> anyhow::Result<()> {
-    if o.backend != "mock" {
+    if o.backend == "serial" {
+        serial_args(o)?;
+    } else if o.serial.protocol.is_some() || o.serial.port.is_some() || o.serial.baud.is_some() {
+        anyhow::bail!("--protocol, --port, --baud and --calibration are for --backend serial");
+    }
+    if o.backend != "mock" && o.backend != "serial" {
         anyhow::bail!(
             "--backend {}: not available yet (mock; the sim and serial backends come with their issues)",
             o.backend

@@ -60,6 +60,8 @@ enum Command {
         /// Folder for the nodes' log files.
         #[arg(long, value_name = "DIR", default_value = "out/launch")]
         log_dir: PathBuf,
+        #[command(flatten)]
+        serial: launch::SerialArgs,
     },
     /// Plan a walk offline; write it as CSV (one row per control tick) and pictures.
     Plan {
@@ -115,12 +117,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             params,
             ns,
             log_dir,
+            serial,
         } => launch::launch(&launch::LaunchOptions {
             backend,
             robot,
             params,
             namespace: ns,
             log_dir,
+            serial,
         }),
         Command::Plan {
             steps,
