@@ -136,7 +136,11 @@ fn interrupt(children: &mut [Running], signal: Signal) {
 pub fn launch(o: &LaunchOptions) -> anyhow::Result<()> {
     if o.backend == "serial" {
         serial_args(o)?;
-    } else if o.serial.protocol.is_some() || o.serial.port.is_some() || o.serial.baud.is_some() {
+    } else if o.serial.protocol.is_some()
+        || o.serial.port.is_some()
+        || o.serial.baud.is_some()
+        || o.serial.calibration.is_some()
+    {
         anyhow::bail!("--protocol, --port, --baud and --calibration are for --backend serial");
     }
     if o.backend != "mock" && o.backend != "serial" {

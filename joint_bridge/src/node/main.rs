@@ -26,7 +26,8 @@ use biped_msgs::ros::{self, NodeSetup, RosNode, Ticker};
 use ik_solver::BipedModel;
 use joint_bridge::serial::{Calibration, Protocol, SerialBackend, SerialConfig};
 use joint_bridge::{
-    Backend, Backoff, BridgeConfig, Event, JointBridge, JointSpec, MockBackend, TimeoutAction,
+    Backend, Backoff, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend,
+    TimeoutAction,
 };
 use ros2_client::ParameterValue;
 
@@ -319,9 +320,13 @@ fn run() -> anyhow::Result<()> {
     } else {
         format!("commanded positions (the {what} backend cannot measure)")
     };
+    let status = if bridge.state() == Lifecycle::Active {
+        "active"
+    } else {
+        "not connected yet (retrying)"
+    };
     ros.info(&format!(
-        "ready: backend {what} {:?}, {} joints, {rate_hz} Hz, watchdog {timeout_s} s ({action_name}), start ramp {start_ramp_s} s; joint_states carries {states_are}",
-        bridge.state(),
+        "ready: backend {what} {status}, {} joints, {rate_hz} Hz, watchdog {timeout_s} s ({action_name}), start ramp {start_ramp_s} s; joint_states carries {states_are}",
         names.len()
     ));
     let t0 = std::time::Instant::now();
@@ -373,6 +378,8 @@ fn run() -> anyhow::Result<()> {
                         ros.error(&format!("publish joint_states: {e:?}"));
                     }
                 }
+                // While the bridge retries a failed backend, the retries say why.
+                Err(_) if bridge.state() == Lifecycle::Error => {}
                 Err(e) => {
                     // Once per second at most while it keeps failing the same way.
                     let now = t0.elapsed().as_secs_f64();
