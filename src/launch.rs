@@ -27,7 +27,7 @@ pub const SIM_PARAMS_YAML: &str = include_str!("../config/sim.yaml");
 /// What to launch.
 #[derive(Debug, Clone)]
 pub struct LaunchOptions {
-    /// Joint bridge backend: `mock` or `sim`.
+    /// Joint bridge backend: `mock`, `sim` or `serial`.
     pub backend: String,
     /// Robot URDF, or the built-in robot.
     pub robot: Option<PathBuf>,
@@ -41,6 +41,46 @@ pub struct LaunchOptions {
     pub node_params: Vec<(String, String)>,
     /// Extra environment variables of the nodes.
     pub env: Vec<(String, String)>,
+    /// The serial board, with `--backend serial`.
+    pub serial: SerialArgs,
+}
+
+/// `--backend serial`: the board (passed to joint_bridge as parameters of the same names).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct SerialArgs {
+    /// Serial protocol: dynamixel2, dynamixel1, maestro or ssc32.
+    #[arg(long, value_parser = ["dynamixel2", "dynamixel1", "maestro", "ssc32"])]
+    pub protocol: Option<String>,
+    /// Serial device, e.g. /dev/ttyUSB0.
+    #[arg(long, value_name = "DEV")]
+    pub port: Option<PathBuf>,
+    /// Baud rate.
+    #[arg(long, value_name = "N")]
+    pub baud: Option<u32>,
+    /// Calibration file. Default: config/calibration_<protocol>.yaml.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
+}
+
+/// The joint_bridge parameters for a serial board.
+fn serial_args(o: &LaunchOptions) -> anyhow::Result<Vec<String>> {
+    let s = &o.serial;
+    let (Some(protocol), Some(port), Some(baud)) = (&s.protocol, &s.port, s.baud) else {
+        anyhow::bail!("--backend serial needs --protocol, --port and --baud");
+    };
+    let calibration = match &s.calibration {
+        Some(c) => absolute(c)?,
+        None => absolute(Path::new(&format!("config/calibration_{protocol}.yaml")))?,
+    };
+    Ok([
+        format!("protocol:={protocol}"),
+        format!("port:={}", port.display()),
+        format!("baud:={baud}"),
+        format!("calibration_file:={}", calibration.display()),
+    ]
+    .into_iter()
+    .flat_map(|p| ["-p".to_string(), p])
+    .collect())
 }
 
 impl LaunchOptions {
@@ -100,11 +140,21 @@ fn absolute(p: &Path) -> anyhow::Result<PathBuf> {
 impl Fleet {
     /// Checks the options and prepares the log folder; starts nothing yet.
     pub fn new(options: LaunchOptions) -> anyhow::Result<Self> {
-        if !["mock", "sim"].contains(&options.backend.as_str()) {
+        if !["mock", "sim", "serial"].contains(&options.backend.as_str()) {
             anyhow::bail!(
-                "--backend {}: not available yet (mock or sim; the serial backend comes with its issue)",
+                "--backend {}: not available (mock, sim or serial)",
                 options.backend
             );
+        }
+        let s = &options.serial;
+        if options.backend == "serial" {
+            serial_args(&options)?;
+        } else if s.protocol.is_some()
+            || s.port.is_some()
+            || s.baud.is_some()
+            || s.calibration.is_some()
+        {
+            anyhow::bail!("--protocol, --port, --baud and --calibration are for --backend serial");
         }
         if !options.namespace.starts_with('/') {
             anyhow::bail!("--ns {}: a namespace starts with /", options.namespace);
@@ -147,6 +197,9 @@ impl Fleet {
         if node == "joint_bridge" {
             args.push("-p".into());
             args.push(format!("backend:={}", o.backend));
+            if o.backend == "serial" {
+                args.extend(serial_args(o)?);
+            }
         }
         for (n, assignment) in &o.node_params {
             if n == node {

@@ -61,6 +61,8 @@ enum Command {
         /// Folder for the nodes' log files.
         #[arg(long, value_name = "DIR", default_value = "out/launch")]
         log_dir: PathBuf,
+        #[command(flatten)]
+        serial: launch::SerialArgs,
     },
     /// Walk the robot in MuJoCo: the ROS 2 fleet and the simulator in lockstep on simulated
     /// time (DDS on this host unless ROS_AUTOMATIC_DISCOVERY_RANGE says otherwise); writes
@@ -147,6 +149,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             params,
             ns,
             log_dir,
+            serial,
         } => launch::launch(&launch::LaunchOptions {
             backend,
             robot,
@@ -155,6 +158,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             log_dir,
             node_params: Vec::new(),
             env: Vec::new(),
+            serial,
         }),
         Command::Walk {
             steps,

@@ -32,8 +32,9 @@ use std::process::{Command, Stdio};
 
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{
-    AnkleTargets, Clock, GaitPhase, Header, JointState, Point, Point32, PointStamped, Polygon,
-    PolygonStamped, Pose, PoseStamped, Quaternion, StringMsg, Time, Twist, Vector3, WalkCommand,
+    AnkleTargets, Clock, DiagnosticArray, DiagnosticStatus, GaitPhase, Header, JointState,
+    KeyValue, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose, PoseStamped, Quaternion,
+    StringMsg, Time, Twist, Vector3, WalkCommand,
 };
 use ros2_client::dds::rustdds;
 use rustdds::no_key::{DeserializerAdapter, SerializerAdapter};
@@ -168,6 +169,9 @@ fn registry() -> Vec<Entry> {
         GaitPhase,
         AnkleTargets,
         WalkCommand,
+        KeyValue,
+        DiagnosticStatus,
+        DiagnosticArray,
     )
 }
 
@@ -245,13 +249,13 @@ fn thaw(registry: &[Entry], value: &Json, ty: &str, at: &str) -> Result<Yaml, St
             .as_str()
             .map(|s| Yaml::String(s.to_owned()))
             .map_or_else(wrong, Ok),
-        "int8" | "int16" | "int32" | "int64" | "uint8" | "uint16" | "uint32" | "uint64" => {
-            match (value.as_i64(), value.as_u64()) {
-                (Some(i), _) => Ok(Yaml::Number(YamlNumber::from(i))),
-                (None, Some(u)) => Ok(Yaml::Number(YamlNumber::from(u))),
-                _ => wrong(),
-            }
-        }
+        // `octet` is the `byte` of a .msg file (DiagnosticStatus.level): a u8 in CDR.
+        "octet" | "int8" | "int16" | "int32" | "int64" | "uint8" | "uint16" | "uint32"
+        | "uint64" => match (value.as_i64(), value.as_u64()) {
+            (Some(i), _) => Ok(Yaml::Number(YamlNumber::from(i))),
+            (None, Some(u)) => Ok(Yaml::Number(YamlNumber::from(u))),
+            _ => wrong(),
+        },
         _ => {
             if let Some(element) = sequence_of(ty) {
                 let Json::Array(items) = value else {

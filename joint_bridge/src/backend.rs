@@ -67,6 +67,44 @@ pub enum BackendError {
     },
 }
 
+/// How healthy a backend is (the levels of diagnostic_msgs/DiagnosticStatus).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DiagnosticLevel {
+    /// Working.
+    #[default]
+    Ok,
+    /// Working, with something to look at.
+    Warn,
+    /// Not working.
+    Error,
+}
+
+impl DiagnosticLevel {
+    /// The `level` byte of diagnostic_msgs/DiagnosticStatus.
+    pub fn as_byte(self) -> u8 {
+        match self {
+            DiagnosticLevel::Ok => 0,
+            DiagnosticLevel::Warn => 1,
+            DiagnosticLevel::Error => 2,
+        }
+    }
+}
+
+/// A backend's health and counters, for the node to publish on `/diagnostics`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Diagnostics {
+    /// What is reported on ("joint_bridge: dynamixel2 board").
+    pub name: String,
+    /// The device (serial port).
+    pub hardware_id: String,
+    /// Health.
+    pub level: DiagnosticLevel,
+    /// One line.
+    pub message: String,
+    /// Counters and details, as key and value.
+    pub values: Vec<(String, String)>,
+}
+
 /// A joint-level hardware or simulator interface with a lifecycle:
 /// `configure` (open, may read, must not move) → `activate` (torque on) → `write`/`read` →
 /// `deactivate` (torque off; also on shutdown, watchdog and errors).
@@ -84,9 +122,17 @@ pub trait Backend: Send {
     fn read(&mut self, t_s: f64) -> Result<Reading, BackendError>;
     /// Torque off. Must be safe to call in any state and more than once.
     fn deactivate(&mut self) -> Result<(), BackendError>;
+    /// Health and counters, for backends that have some.
+    fn diagnostics(&self) -> Option<Diagnostics> {
+        None
+    }
+    /// Things noticed since the last call, for the log (e.g. a servo's error bits by name).
+    fn take_notices(&mut self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
-/// A boxed backend is a backend, so a node can pick one at run time.
+/// A boxed backend is a backend (the node picks one at run time).
 impl<B: Backend + ?Sized> Backend for Box<B> {
     fn name(&self) -> &str {
         (**self).name()
@@ -105,5 +151,11 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn deactivate(&mut self) -> Result<(), BackendError> {
         (**self).deactivate()
+    }
+    fn diagnostics(&self) -> Option<Diagnostics> {
+        (**self).diagnostics()
+    }
+    fn take_notices(&mut self) -> Vec<String> {
+        (**self).take_notices()
     }
 }

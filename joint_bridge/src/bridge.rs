@@ -34,6 +34,13 @@ pub struct BridgeConfig {
     pub watchdog_timeout_s: f64,
     /// What the watchdog does.
     pub on_timeout: TimeoutAction,
+    /// After each activation with a measured pose (start, reconnection), the joints go from
+    /// that pose to the commanded one over this time (s), on a smooth ramp that begins with
+    /// the first command, besides the velocity limits. 0: velocity limits only.
+    pub start_ramp_s: f64,
+    /// When the backend fails (or cannot start), configure and activate it again after
+    /// these delays; `None`: stay in [`Lifecycle::Error`].
+    pub reconnect: Option<Backoff>,
 }
 
 impl Default for BridgeConfig {
@@ -41,8 +48,33 @@ impl Default for BridgeConfig {
         Self {
             watchdog_timeout_s: 0.25,
             on_timeout: TimeoutAction::Hold,
+            start_ramp_s: 0.0,
+            reconnect: None,
         }
     }
+}
+
+/// Retry delays: the first, doubled after each failure up to the longest.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Backoff {
+    /// Delay before the first retry (s).
+    pub first_s: f64,
+    /// Longest delay (s).
+    pub max_s: f64,
+}
+
+/// The move from the measured pose to the commands after an activation.
+#[derive(Debug, Clone)]
+struct Ramp {
+    from: Vec<f64>,
+    /// When it began (the first tick with a command), once it has.
+    start_s: Option<f64>,
+}
+
+/// Smoothstep: 0 → 0, 1 → 1, zero slope at both ends.
+fn smooth(p: f64) -> f64 {
+    let p = p.clamp(0.0, 1.0);
+    p * p * (3.0 - 2.0 * p)
 }
 
 /// Something the bridge noticed, for the node to log.
@@ -89,6 +121,18 @@ pub enum Event {
     BackendFailed(BackendError),
     /// Sag compensation could not be computed; the uncompensated output was written.
     CompensationFailed(String),
+    /// A retry to configure and activate the backend failed; the next one is due later.
+    RetryFailed {
+        /// Why.
+        error: BackendError,
+        /// Seconds to the next retry.
+        next_in_s: f64,
+    },
+    /// The backend was configured and activated again after a failure; the joints ramp from
+    /// the measured pose to the commands.
+    Reconnected,
+    /// Something the backend noticed (e.g. a servo's error bits, by name).
+    BackendNotice(String),
 }
 
 impl fmt::Display for Event {
@@ -131,6 +175,17 @@ impl fmt::Display for Event {
             Event::CompensationFailed(why) => {
                 write!(f, "sag compensation skipped this tick: {why}")
             }
+            Event::RetryFailed { error, next_in_s } => {
+                write!(
+                    f,
+                    "backend still failing ({error}); next try in {next_in_s:.1} s"
+                )
+            }
+            Event::Reconnected => write!(
+                f,
+                "backend configured and active again; ramping from the measured pose"
+            ),
+            Event::BackendNotice(n) => write!(f, "{n}"),
         }
     }
 }
@@ -166,6 +221,10 @@ pub struct JointBridge<B: Backend> {
     compensation: Option<SagCompensation>,
     /// What was last sent: the output, compensated and clamped.
     written: Vec<f64>,
+    ramp: Option<Ramp>,
+    /// Current retry delay and when the next retry is due.
+    retry_delay_s: f64,
+    retry_at_s: Option<f64>,
 }
 
 impl<B: Backend> JointBridge<B> {
@@ -191,6 +250,9 @@ impl<B: Backend> JointBridge<B> {
             tripped: false,
             reported_unknown: HashSet::new(),
             compensation: None,
+            ramp: None,
+            retry_delay_s: config.reconnect.map_or(0.0, |b| b.first_s),
+            retry_at_s: None,
         }
     }
 
@@ -214,18 +276,73 @@ impl<B: Backend> JointBridge<B> {
 
     /// Configures and activates the backend. The output starts at the measured pose where
     /// the backend can measure it, so the first command is approached at the velocity limits.
+    ///
+    /// If it fails and [`BridgeConfig::reconnect`] is set, the bridge is in
+    /// [`Lifecycle::Error`] and [`Self::tick`] retries with backoff.
     pub fn start(&mut self) -> Result<(), BackendError> {
+        let r = self.configure_and_activate();
+        if r.is_err() && self.config.reconnect.is_some() {
+            let _ = self.backend.deactivate();
+            self.state = Lifecycle::Error;
+            self.retry_at_s = None;
+        }
+        r
+    }
+
+    fn configure_and_activate(&mut self) -> Result<(), BackendError> {
+        self.ramp = None;
         if let Some(measured) = self.backend.configure(&self.joints)?
             && measured.len() == self.joints.len()
             && measured.iter().all(|v| v.is_finite())
         {
             self.output = measured.clone();
-            self.target = measured;
+            if self.state == Lifecycle::Unconfigured || self.last_command_s.is_none() {
+                // No command yet: hold the measured pose until one comes.
+                self.target = measured.clone();
+            }
+            if self.config.start_ramp_s > 0.0 {
+                self.ramp = Some(Ramp {
+                    from: measured,
+                    start_s: None,
+                });
+            }
         }
         self.state = Lifecycle::Inactive;
         self.backend.activate()?;
         self.state = Lifecycle::Active;
         Ok(())
+    }
+
+    /// In Error with reconnection on: retry when due.
+    fn retry(&mut self, t_s: f64, events: &mut Vec<Event>) {
+        let Some(backoff) = self.config.reconnect else {
+            return;
+        };
+        let Some(at) = self.retry_at_s else {
+            self.retry_at_s = Some(t_s + self.retry_delay_s);
+            return;
+        };
+        if t_s < at {
+            return;
+        }
+        match self.configure_and_activate() {
+            Ok(()) => {
+                self.retry_delay_s = backoff.first_s;
+                self.retry_at_s = None;
+                self.tripped = false;
+                events.push(Event::Reconnected);
+            }
+            Err(error) => {
+                let _ = self.backend.deactivate();
+                self.state = Lifecycle::Error;
+                self.retry_delay_s = (self.retry_delay_s * 2.0).min(backoff.max_s);
+                self.retry_at_s = Some(t_s + self.retry_delay_s);
+                events.push(Event::RetryFailed {
+                    error,
+                    next_in_s: self.retry_delay_s,
+                });
+            }
+        }
     }
 
     /// Torque off (on shutdown, signals, errors).
@@ -254,6 +371,14 @@ impl<B: Backend> JointBridge<B> {
     /// The backend.
     pub fn backend(&self) -> &B {
         &self.backend
+    }
+    /// The backend, to change (tests, diagnostics).
+    pub fn backend_mut(&mut self) -> &mut B {
+        &mut self.backend
+    }
+    /// True while the start ramp moves the joints from the measured pose.
+    pub fn ramping(&self) -> bool {
+        self.ramp.is_some()
     }
 
     /// Takes a command received at `t_s`: joint names and positions (rad). Joints not named
@@ -318,6 +443,9 @@ impl<B: Backend> JointBridge<B> {
         let mut events = Vec::new();
         let dt = self.last_tick_s.map_or(0.0, |l| (t_s - l).max(0.0));
         self.last_tick_s = Some(t_s);
+        if self.state == Lifecycle::Error {
+            self.retry(t_s, &mut events);
+        }
         if self.state == Lifecycle::Active
             && !self.tripped
             && let Some(last) = self.last_command_s
@@ -340,8 +468,24 @@ impl<B: Backend> JointBridge<B> {
             }
         }
         if self.state == Lifecycle::Active {
-            for ((out, &target), spec) in self.output.iter_mut().zip(&self.target).zip(&self.joints)
-            {
+            // The start ramp: from the measured pose to the target, smoothly, beginning at
+            // the first tick with a command.
+            let mut goal = self.target.clone();
+            if let Some(ramp) = &mut self.ramp {
+                if ramp.start_s.is_none() && self.last_command_s.is_some() && !self.tripped {
+                    ramp.start_s = Some(t_s);
+                }
+                let a = ramp
+                    .start_s
+                    .map_or(0.0, |s0| smooth((t_s - s0) / self.config.start_ramp_s));
+                for (g, &from) in goal.iter_mut().zip(&ramp.from) {
+                    *g = from + (*g - from) * a;
+                }
+                if a >= 1.0 {
+                    self.ramp = None;
+                }
+            }
+            for ((out, &target), spec) in self.output.iter_mut().zip(&goal).zip(&self.joints) {
                 // No speed limit: straight to the target (inf × 0 would be NaN).
                 let step = if spec.velocity_rad_s.is_finite() {
                     spec.velocity_rad_s * dt
@@ -363,11 +507,26 @@ impl<B: Backend> JointBridge<B> {
             if let Err(e) = self.backend.write(t_s, &self.written) {
                 let _ = self.backend.deactivate();
                 self.state = Lifecycle::Error;
+                self.retry_at_s = None;
+                self.retry_delay_s = self.config.reconnect.map_or(0.0, |b| b.first_s);
+                events.extend(
+                    self.backend
+                        .take_notices()
+                        .into_iter()
+                        .map(Event::BackendNotice),
+                );
                 events.push(Event::BackendFailed(e.clone()));
                 return (Err(e), events);
             }
         }
-        (self.backend.read(t_s), events)
+        let reading = self.backend.read(t_s);
+        events.extend(
+            self.backend
+                .take_notices()
+                .into_iter()
+                .map(Event::BackendNotice),
+        );
+        (reading, events)
     }
 }
 

@@ -14,11 +14,6 @@ pub enum CompensationError {
     /// The stiffness is not a positive finite number.
     #[error("sag compensation: servo stiffness {0} N·m/rad must be a finite number above 0")]
     Stiffness(f64),
-    /// A movable joint of the robot the bridge does not drive: the pose would be unknown.
-    #[error(
-        "sag compensation: the robot's joint `{0}` is not driven by the bridge, so the pose it holds is unknown"
-    )]
-    MissingJoint(String),
 }
 
 /// The compensation of one robot for one bridge's joint order.
@@ -26,15 +21,16 @@ pub enum CompensationError {
 pub struct SagCompensation {
     model: BipedModel,
     kp_nm_per_rad: f64,
-    /// Bridge index of each model dof.
-    bridge_index: Vec<usize>,
+    /// Bridge index of each model dof (`None`: not driven, taken at 0 rad).
+    bridge_index: Vec<Option<usize>>,
     /// Scratch joint vector in model order.
     q_model: Vec<f64>,
 }
 
 impl SagCompensation {
     /// Compensation for servos of stiffness `kp_nm_per_rad` on `model`, for a bridge driving
-    /// `joints` (which must include every movable joint of the model).
+    /// `joints`. Movable joints of the model the bridge does not drive (a board with servos
+    /// on the legs only) are taken at 0 rad.
     pub fn new(
         model: BipedModel,
         kp_nm_per_rad: f64,
@@ -43,16 +39,11 @@ impl SagCompensation {
         if !(kp_nm_per_rad.is_finite() && kp_nm_per_rad > 0.0) {
             return Err(CompensationError::Stiffness(kp_nm_per_rad));
         }
-        let bridge_index = model
+        let bridge_index: Vec<Option<usize>> = model
             .robot()
             .dof_names()
-            .map(|n| {
-                joints
-                    .iter()
-                    .position(|j| j.name == n)
-                    .ok_or_else(|| CompensationError::MissingJoint(n.to_owned()))
-            })
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|n| joints.iter().position(|j| j.name == n))
+            .collect();
         let q_model = vec![0.0; bridge_index.len()];
         Ok(Self {
             model,
@@ -71,15 +62,17 @@ impl SagCompensation {
     /// order). On a pose the model cannot evaluate (never for finite positions) `out` is
     /// left as it is and the reason returned.
     pub fn add_to(&mut self, positions_rad: &[f64], out: &mut [f64]) -> Result<(), String> {
-        for (q, &b) in self.q_model.iter_mut().zip(&self.bridge_index) {
-            *q = positions_rad[b];
+        for (q, b) in self.q_model.iter_mut().zip(&self.bridge_index) {
+            *q = b.map_or(0.0, |b| positions_rad[b]);
         }
         let offsets = self
             .model
             .sag_compensation_rad(&self.q_model, self.kp_nm_per_rad)
             .map_err(|e| e.to_string())?;
-        for (o, &b) in offsets.iter().zip(&self.bridge_index) {
-            out[b] += o;
+        for (o, b) in offsets.iter().zip(&self.bridge_index) {
+            if let Some(b) = b {
+                out[*b] += o;
+            }
         }
         Ok(())
     }

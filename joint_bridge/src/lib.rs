@@ -18,9 +18,10 @@ mod bridge;
 mod compensation;
 mod limits;
 mod mock;
+pub mod serial;
 
-pub use backend::{Backend, BackendError, Lifecycle, Reading};
-pub use bridge::{BridgeConfig, Event, JointBridge, TimeoutAction};
+pub use backend::{Backend, BackendError, DiagnosticLevel, Diagnostics, Lifecycle, Reading};
+pub use bridge::{Backoff, BridgeConfig, Event, JointBridge, TimeoutAction};
 pub use compensation::{CompensationError, SagCompensation};
 pub use limits::JointSpec;
 pub use mock::MockBackend;

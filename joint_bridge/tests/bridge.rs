@@ -55,6 +55,7 @@ fn patient() -> BridgeConfig {
     BridgeConfig {
         watchdog_timeout_s: 1e6,
         on_timeout: TimeoutAction::Hold,
+        ..BridgeConfig::default()
     }
 }
 
@@ -737,7 +738,9 @@ fn watchdog_hold_trips_on_the_first_tick_past_the_timeout_and_keeps_writing_the_
         BridgeConfig::default(),
         BridgeConfig {
             watchdog_timeout_s: 0.25,
-            on_timeout: TimeoutAction::Hold
+            on_timeout: TimeoutAction::Hold,
+            start_ramp_s: 0.0,
+            reconnect: None,
         }
     );
     let (rec, log) = Recorder::new();
@@ -845,6 +848,7 @@ fn watchdog_limp_turns_the_torque_off_and_a_command_resumes_from_the_output() {
     let config = BridgeConfig {
         watchdog_timeout_s: 0.25,
         on_timeout: TimeoutAction::Limp,
+        ..BridgeConfig::default()
     };
     let (rec, log) = Recorder::new();
     let mut bridge = JointBridge::new(rec, vec![spec("a", -1.5, 1.5, 1.0)], config);

@@ -399,3 +399,60 @@ ros_message!(
         ("start_time", "builtin_interfaces/Time")
     ]
 );
+
+/// diagnostic_msgs/msg/KeyValue.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct KeyValue {
+    /// What is reported.
+    pub key: String,
+    /// Its value.
+    pub value: String,
+}
+ros_message!(
+    KeyValue,
+    "diagnostic_msgs",
+    [("key", "string"), ("value", "string")]
+);
+
+/// diagnostic_msgs/msg/DiagnosticStatus.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DiagnosticStatus {
+    /// 0 OK, 1 WARN, 2 ERROR, 3 STALE.
+    pub level: u8,
+    /// What this status is about.
+    pub name: String,
+    /// One line.
+    pub message: String,
+    /// The device.
+    pub hardware_id: String,
+    /// Details.
+    pub values: Vec<KeyValue>,
+}
+ros_message!(
+    DiagnosticStatus,
+    "diagnostic_msgs",
+    [
+        ("level", "octet"),
+        ("name", "string"),
+        ("message", "string"),
+        ("hardware_id", "string"),
+        ("values", "sequence<diagnostic_msgs/KeyValue>"),
+    ]
+);
+
+/// diagnostic_msgs/msg/DiagnosticArray (topic `/diagnostics`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DiagnosticArray {
+    /// Stamp.
+    pub header: Header,
+    /// One status per device.
+    pub status: Vec<DiagnosticStatus>,
+}
+ros_message!(
+    DiagnosticArray,
+    "diagnostic_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("status", "sequence<diagnostic_msgs/DiagnosticStatus>"),
+    ]
+);

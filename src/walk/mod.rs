@@ -184,6 +184,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         log_dir: o.out.join("logs"),
         node_params,
         env,
+        serial: Default::default(),
     })?;
     for node in ["joint_bridge", "ik_solver", "gait_planner"] {
         fleet.spawn(node)?;

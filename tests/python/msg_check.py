@@ -151,6 +151,11 @@ def convert_in(slot, value, where):
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise SampleError(f"{where}: expected a number, got {json.dumps(value)}")
             return float(value)
+        if t == "octet":
+            # rclpy holds a `byte` field as a bytes object of length 1.
+            if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 255:
+                raise SampleError(f"{where}: expected a byte 0..255, got {json.dumps(value)}")
+            return bytes([value])
         if t in BASIC_SIZES and t not in ("char", "wchar", "octet"):
             if isinstance(value, bool) or not isinstance(value, int):
                 raise SampleError(f"{where}: expected an integer, got {json.dumps(value)}")
@@ -176,6 +181,8 @@ def convert_out(slot, value):
         t = slot.typename
         if t == "boolean":
             return bool(value)
+        if t == "octet":
+            return value[0] if isinstance(value, (bytes, bytearray)) else int(value)
         if t in rosidl.FLOATING_POINT_TYPES:
             value = float(value)
             if math.isnan(value):

@@ -7,16 +7,24 @@
 //! `joint_states` itself.
 //!
 //! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `backend`
-//! (`mock` or `sim`), `rate_hz` (100), `watchdog_timeout_s` (0.25), `watchdog_action` (`hold`
-//! or `limp`), `sag_compensation_kp` (the servos' stiffness in N·m/rad for the sag
-//! compensation; 0 = off), `sim_wait_s` (how long the `sim` backend waits for the simulator,
-//! 10 s), and the read-only `joint_states_measured` (whether `joint_states` carries measured
-//! positions or, for backends that cannot measure, the commanded ones).
+//! (`mock`, `sim` or `serial`), `rate_hz` (100), `watchdog_timeout_s` (0.25),
+//! `watchdog_action` (`hold` or `limp`), `start_ramp_s` (the move from the measured pose to
+//! the first command, 2 s), `sag_compensation_kp` (the servos' stiffness in N·m/rad for the
+//! sag compensation; 0 = off), `sim_wait_s` (how long the `sim` backend waits for the
+//! simulator, 10 s), `lockstep_wait_s`, the serial board's `protocol`, `port`, `baud`,
+//! `calibration_file`, `reply_timeout_s`, `retry_first_s`, `retry_max_s`, and the read-only
+//! `joint_states_measured` (whether `joint_states` carries measured positions or, for
+//! backends that cannot measure, the commanded ones).
+//!
+//! With a serial board the node also publishes `/diagnostics`
+//! (diagnostic_msgs/msg/DiagnosticArray, once a second): the board's state and wire
+//! counters (timeouts, corrupted replies, reconnections, servo error bits).
 //!
 //! With `use_sim_time` the bridge ticks on `/clock`, in lockstep: tick t waits (up to
 //! `lockstep_wait_s` of wall time) for the `joint_commands` stamped t, so a lockstep simulator
 //! gets the answer to every tick computed from that tick's command.
 
+mod serial_setup;
 mod sim_link;
 
 use std::collections::BTreeMap;
@@ -25,19 +33,20 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use biped_msgs::msg::{Header, JointState};
+use biped_msgs::msg::{DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue};
 use biped_msgs::ros::{self, NodeSetup, RosNode, Tick, TickSource};
 use ik_solver::BipedModel;
 use joint_bridge::{
-    Backend, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend, SagCompensation,
-    TimeoutAction,
+    Backend, Backoff, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend,
+    SagCompensation, TimeoutAction,
 };
 use ros2_client::ParameterValue;
 use smol::future::FutureExt as _;
 
+use crate::serial_setup::{SerialParams, in_range};
 use crate::sim_link::{SimLink, SimLinkHandle};
 
-const PARAMS: [&str; 8] = [
+const PARAMS: [&str; 9] = [
     "robot_description_file",
     "backend",
     "rate_hz",
@@ -46,6 +55,7 @@ const PARAMS: [&str; 8] = [
     "sag_compensation_kp",
     "sim_wait_s",
     "lockstep_wait_s",
+    "start_ramp_s",
 ];
 
 fn main() -> ExitCode {
@@ -66,7 +76,12 @@ fn run() -> anyhow::Result<()> {
             setup.own_args
         );
     }
-    ros::check_known(&setup.params, &PARAMS)?;
+    let known: Vec<&str> = PARAMS
+        .iter()
+        .chain(&serial_setup::PARAMS)
+        .copied()
+        .collect();
+    ros::check_known(&setup.params, &known)?;
     let robot_file = setup.str_param("robot_description_file", "")?;
     let backend_name = setup.str_param("backend", "mock")?;
     let rate_hz = setup.f64_param("rate_hz", 100.0)?;
@@ -97,16 +112,37 @@ fn run() -> anyhow::Result<()> {
     let action: TimeoutAction = action_name
         .parse()
         .map_err(|e: String| anyhow::anyhow!("parameter `watchdog_action`: {e}"))?;
-    if !["mock", "sim"].contains(&backend_name.as_str()) {
-        anyhow::bail!("parameter `backend` = `{backend_name}`: not available (mock or sim)");
+    if !["mock", "sim", "serial"].contains(&backend_name.as_str()) {
+        anyhow::bail!(
+            "parameter `backend` = `{backend_name}`: not available (mock, sim or serial)"
+        );
     }
+    let start_ramp_s = in_range(
+        "start_ramp_s",
+        setup.f64_param("start_ramp_s", 2.0)?,
+        0.0,
+        60.0,
+        "s",
+    )?;
+    let serial = SerialParams::from_setup(&setup)?;
     let model = BipedModel::from_file_or_default(&robot_file, None)
         .with_context(|| format!("robot_description_file `{robot_file}`"))?;
-    let joints = JointSpec::from_robot(model.robot());
-    let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
+    let mut joints = JointSpec::from_robot(model.robot());
     let sim = backend_name == "sim";
+    let serial_board = if backend_name == "serial" {
+        Some(serial.backend(model.robot().name(), &mut joints)?)
+    } else {
+        None
+    };
+    let names: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
+    let measured = sim || (serial_board.is_some() && serial.measures());
+    let what = if serial_board.is_some() {
+        serial.describe()
+    } else {
+        backend_name.clone()
+    };
 
-    let declared = BTreeMap::from([
+    let mut declared = BTreeMap::from([
         (
             "robot_description_file".to_string(),
             ParameterValue::String(robot_file.clone()),
@@ -135,35 +171,56 @@ fn run() -> anyhow::Result<()> {
         ),
         (
             "joint_states_measured".to_string(),
-            ParameterValue::Boolean(sim),
+            ParameterValue::Boolean(measured),
+        ),
+        (
+            "start_ramp_s".to_string(),
+            ParameterValue::Double(start_ramp_s),
         ),
     ]);
+    declared.extend(serial.declared());
     let mut ros = RosNode::start(setup, &declared, Some(ros::read_at_startup()))?;
     let stop = ros::shutdown_flag()?;
     let sub = ros.subscription::<JointState>("joint_commands")?;
     let mut ticks = TickSource::new(&mut ros, rate_hz)?;
     let simulated = ticks.simulated();
-    let (backend, link, states_pub): (Box<dyn Backend>, Option<SimLinkHandle>, _) = if sim {
-        let (link, handle) = SimLink::new(
-            ros.publisher::<JointState>("sim/joint_commands")?,
-            ros.subscription::<JointState>("joint_states")?,
-            Duration::from_secs_f64(sim_wait_s),
-            simulated,
-        );
-        (Box::new(link), Some(handle), None)
-    } else {
-        (
-            Box::new(MockBackend::default()),
-            None,
-            Some(ros.publisher::<JointState>("joint_states")?),
-        )
-    };
+    let mut reconnect: Option<Backoff> = None;
+    let mut not_driven = Vec::new();
+    let (backend, link, states_pub): (Box<dyn Backend>, Option<SimLinkHandle>, _) =
+        match serial_board {
+            Some((board, backoff, skipped)) => {
+                reconnect = Some(backoff);
+                not_driven = skipped;
+                (
+                    Box::new(board),
+                    None,
+                    Some(ros.publisher::<JointState>("joint_states")?),
+                )
+            }
+            None if sim => {
+                let (link, handle) = SimLink::new(
+                    ros.publisher::<JointState>("sim/joint_commands")?,
+                    ros.subscription::<JointState>("joint_states")?,
+                    Duration::from_secs_f64(sim_wait_s),
+                    simulated,
+                );
+                (Box::new(link), Some(handle), None)
+            }
+            None => (
+                Box::new(MockBackend::default()),
+                None,
+                Some(ros.publisher::<JointState>("joint_states")?),
+            ),
+        };
+    let diagnostics = ros.publisher::<DiagnosticArray>("/diagnostics")?;
     let mut bridge = JointBridge::new(
         backend,
         joints.clone(),
         BridgeConfig {
             watchdog_timeout_s: timeout_s,
             on_timeout: action,
+            start_ramp_s,
+            reconnect,
         },
     );
     if kp > 0.0 {
@@ -171,9 +228,21 @@ fn run() -> anyhow::Result<()> {
     }
     let executor = ros.executor()?;
 
-    bridge
-        .start()
-        .map_err(|e| anyhow::anyhow!("backend {backend_name}: {e}"))?;
+    if !not_driven.is_empty() {
+        ros.info(&format!(
+            "not in the calibration, not driven: {}",
+            not_driven.join(", ")
+        ));
+    }
+    match bridge.start() {
+        Ok(()) => {}
+        // A serial board retries with backoff (port absent, board unpowered...).
+        Err(e) if reconnect.is_some() => ros.error(&format!(
+            "backend {what}: {e}; retrying every {}..{} s",
+            serial.retry_first_s, serial.retry_max_s
+        )),
+        Err(e) => anyhow::bail!("backend {backend_name}: {e}"),
+    }
     let compensation = if kp > 0.0 {
         format!("sag compensation for {kp} N·m/rad servos")
     } else {
@@ -181,10 +250,15 @@ fn run() -> anyhow::Result<()> {
     };
     let states = if sim {
         "the simulator publishes the measured joint_states".to_string()
+    } else if measured {
+        "joint_states carries measured positions".to_string()
     } else {
-        format!(
-            "joint_states carries commanded positions (the {backend_name} backend cannot measure)"
-        )
+        format!("joint_states carries commanded positions (the {what} backend cannot measure)")
+    };
+    let status = if bridge.state() == Lifecycle::Active {
+        "active"
+    } else {
+        "not connected yet (retrying)"
     };
     let clock = if simulated {
         "on /clock (lockstep)"
@@ -192,18 +266,19 @@ fn run() -> anyhow::Result<()> {
         "on the monotonic clock"
     };
     ros.info(&format!(
-        "ready: backend {backend_name} active, {} joints, {rate_hz} Hz {clock}, watchdog {timeout_s} s ({action_name}), {compensation}; {states}",
+        "ready: backend {what} {status}, {} joints, {rate_hz} Hz {clock}, watchdog {timeout_s} s ({action_name}), start ramp {start_ramp_s} s, {compensation}; {states}",
         names.len()
     ));
     let report = |events: Vec<Event>| {
         for e in events {
             match e {
-                Event::Resumed => ros.info(&e.to_string()),
-                Event::BackendFailed(_) => ros.error(&e.to_string()),
+                Event::Resumed | Event::Reconnected => ros.info(&e.to_string()),
+                Event::BackendFailed(_) | Event::RetryFailed { .. } => ros.error(&e.to_string()),
                 _ => ros.warn(&e.to_string()),
             }
         }
     };
+    let last_diagnostics = std::cell::Cell::new(None::<Instant>);
     // One control period at t: watchdog, write, read back, publish.
     let do_tick = |bridge: &mut JointBridge<Box<dyn Backend>>, t_s: f64| {
         let (reading, events) = bridge.tick(t_s);
@@ -235,7 +310,37 @@ fn run() -> anyhow::Result<()> {
                 }
             }
             (Ok(_), None) => {}
-            (Err(e), _) => ros.error(&format!("backend read: {e}")),
+            // While the bridge retries a failed backend, the retries say why.
+            (Err(_), _) if bridge.state() == Lifecycle::Error => {}
+            (Err(e), _) => ros.error_throttled("backend read", &format!("backend read: {e}")),
+        }
+        // Once a second, for backends that have diagnostics (the serial boards).
+        if last_diagnostics
+            .get()
+            .is_none_or(|t| t.elapsed() >= Duration::from_secs(1))
+            && let Some(d) = bridge.backend().diagnostics()
+        {
+            last_diagnostics.set(Some(Instant::now()));
+            let msg = DiagnosticArray {
+                header: Header {
+                    stamp: ros.node.time_now().into(),
+                    frame_id: String::new(),
+                },
+                status: vec![DiagnosticStatus {
+                    level: d.level.as_byte(),
+                    name: d.name,
+                    message: d.message,
+                    hardware_id: d.hardware_id,
+                    values: d
+                        .values
+                        .into_iter()
+                        .map(|(key, value)| KeyValue { key, value })
+                        .collect(),
+                }],
+            };
+            if let Err(e) = diagnostics.publish(msg) {
+                ros.error_throttled("publish diagnostics", &format!("publish diagnostics: {e}"));
+            }
         }
     };
     let t0 = Instant::now();
