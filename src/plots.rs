@@ -238,17 +238,7 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
         let mut chart = floor_chart(&plot_area, &window)?;
         for f in &feet {
             let colour = side_colour(f.side);
-            let pts: Vec<(f64, f64)> = f.corners_m.iter().map(|c| (c[0], c[1])).collect();
-            chart.draw_series(std::iter::once(Polygon::new(
-                pts.clone(),
-                colour.mix(0.18).filled(),
-            )))?;
-            let mut outline = pts.clone();
-            outline.extend(pts.first().copied());
-            chart.draw_series(std::iter::once(PathElement::new(
-                outline,
-                colour.stroke_width(2),
-            )))?;
+            draw_footprint(&mut chart, f, (0.0, 0.0), 0.18)?;
             let (name, at, v_pos, dy_px) = footprint_label(f);
             let style = text_style(LEGEND_FONT)
                 .color(&colour)
@@ -293,18 +283,46 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
     })
 }
 
+/// The chart type of [`floor_chart`].
+pub(crate) type FloorChart<'a, 'b> = ChartContext<
+    'a,
+    SVGBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// A footprint's sole rectangle moved by `shift_m`, filled with its side's colour at
+/// `fill_alpha` and outlined.
+pub(crate) fn draw_footprint(
+    chart: &mut FloorChart<'_, '_>,
+    f: &Footprint,
+    shift_m: (f64, f64),
+    fill_alpha: f64,
+) -> anyhow::Result<()> {
+    let colour = side_colour(f.side);
+    let pts: Vec<(f64, f64)> = f
+        .corners_m
+        .iter()
+        .map(|c| (c[0] + shift_m.0, c[1] + shift_m.1))
+        .collect();
+    chart.draw_series(std::iter::once(Polygon::new(
+        pts.clone(),
+        colour.mix(fill_alpha).filled(),
+    )))?;
+    let mut outline = pts.clone();
+    outline.extend(pts.first().copied());
+    chart.draw_series(std::iter::once(PathElement::new(
+        outline,
+        colour.stroke_width(2),
+    )))?;
+    Ok(())
+}
+
 /// A chart of the floor seen from above over `window` (m): x forward to the right, y left
 /// upwards, labelled axes and a faint grid.
 pub(crate) fn floor_chart<'a, 'b>(
     area: &'a Area<'b>,
     window: &Window,
-) -> anyhow::Result<
-    ChartContext<
-        'a,
-        SVGBackend<'b>,
-        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
-    >,
-> {
+) -> anyhow::Result<FloorChart<'a, 'b>> {
     let mut chart = ChartBuilder::on(area)
         .margin(MARGIN_PX)
         .x_label_area_size(X_LABELS_PX)

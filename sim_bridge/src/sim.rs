@@ -23,6 +23,12 @@ pub const COP_MIN_FRACTION: f64 = 0.1;
 /// More than this share of the weight on anything but the soles is a fall.
 pub const BODY_CONTACT_FRACTION: f64 = 0.05;
 
+/// Angle between a pose's z axis and the world's (rad).
+pub(crate) fn tilt_rad(pose: &Isometry3<f64>) -> f64 {
+    let z = pose.rotation * Vector3::z();
+    z.z.clamp(-1.0, 1.0).acos()
+}
+
 /// Why the robot is considered fallen.
 #[derive(Debug, Clone, PartialEq)]
 pub enum FallReason {
@@ -473,8 +479,7 @@ impl Sim {
 
     /// Angle between the base's z axis and the world's (rad).
     pub fn base_tilt_rad(&self) -> f64 {
-        let z = self.base_pose().rotation * Vector3::z();
-        z.z.clamp(-1.0, 1.0).acos()
+        tilt_rad(&self.base_pose())
     }
 
     /// Whole-body centre of mass (world, m).

@@ -8,7 +8,7 @@ use serde::Serialize;
 
 use crate::compensation::compensated_targets_rad;
 use crate::error::SimError;
-use crate::sim::Sim;
+use crate::sim::{Sim, tilt_rad};
 
 /// A sole carrying more than this share of the weight is standing (for the slip measure).
 pub const STANCE_FRACTION: f64 = 0.05;
@@ -243,11 +243,6 @@ pub struct WalkMonitor {
     stance_start: [Option<[f64; 2]>; 2],
     max_slip_m: f64,
     fell: Option<FallReport>,
-}
-
-fn tilt_rad(base: &Isometry3<f64>) -> f64 {
-    let z = base.rotation * Vector3::z();
-    z.z.clamp(-1.0, 1.0).acos()
 }
 
 impl WalkMonitor {

@@ -20,8 +20,8 @@ use super::record::Recording;
 use super::report::{WalkSummary, joints_in_model_order};
 use crate::plots::{
     BASE_COLOUR, COM_COLOUR, LEGEND_FONT, LEGEND_W_PX, LegendEntry, MARGIN_PX, Swatch, TICK_FONT,
-    TITLE_H_PX, Window, X_LABELS_PX, Y_LABELS_PX, draw_legend, draw_title, floor_chart,
-    planted_footprints, render, side_colour,
+    TITLE_H_PX, Window, X_LABELS_PX, Y_LABELS_PX, draw_footprint, draw_legend, draw_title,
+    floor_chart, planted_footprints, render, side_colour,
 };
 
 const COP_COLOUR: RGBColor = RGBColor(255, 127, 14);
@@ -124,18 +124,7 @@ fn top_view(
         let (plot_area, legend_area) = body.split_horizontally(WIDTH_PX - LEGEND_W_PX);
         let mut chart = floor_chart(&plot_area, &window)?;
         for f in &feet {
-            let colour = side_colour(f.side);
-            let pts: Vec<(f64, f64)> = f.corners_m.iter().map(|c| (c[0] + dx, c[1] + dy)).collect();
-            chart.draw_series(std::iter::once(Polygon::new(
-                pts.clone(),
-                colour.mix(0.15).filled(),
-            )))?;
-            let mut outline = pts.clone();
-            outline.extend(pts.first().copied());
-            chart.draw_series(std::iter::once(PathElement::new(
-                outline,
-                colour.stroke_width(2),
-            )))?;
+            draw_footprint(&mut chart, f, (dx, dy), 0.15)?;
         }
         chart.draw_series(
             cop.iter()
