@@ -7,10 +7,13 @@
 //!   the types rosidl generates from the `.msg` files.
 //! - [`ros`]: what every node shares: `--ros-args` parsing, the DDS context (honouring
 //!   `ROS_DOMAIN_ID` and `ROS_AUTOMATIC_DISCOVERY_RANGE`), parameter files, QoS profiles.
+//! - [`type_description`]: what rosbag2 stores about a type: its RIHS01 hash and `ros2msg`
+//!   definition, computed from the same field lists.
 //!
 //! Core crates never see these types: nodes convert at the edge.
 
 pub mod msg;
 pub mod ros;
+pub mod type_description;
 
 pub use msg::RosMessage;

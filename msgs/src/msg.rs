@@ -11,10 +11,12 @@ pub trait RosMessage: ros2_client::Message + Clone + PartialEq + std::fmt::Debug
     const NAME: &'static str;
     /// Fields in order: (name, rosidl type).
     const FIELDS: &'static [(&'static str, &'static str)];
+    /// `package/msg/Name`, as ROS tools and rosbag2 write it.
+    const TYPE_NAME: &'static str;
 
     /// `package/msg/Name`, as ROS tools print it.
     fn type_name() -> String {
-        format!("{}/msg/{}", Self::PACKAGE, Self::NAME)
+        Self::TYPE_NAME.to_string()
     }
     /// The type name for ros2-client.
     fn message_type_name() -> ros2_client::MessageTypeName {
@@ -29,6 +31,7 @@ macro_rules! ros_message {
             const PACKAGE: &'static str = $pkg;
             const NAME: &'static str = stringify!($ty);
             const FIELDS: &'static [(&'static str, &'static str)] = &[$(($field, $fty)),*];
+            const TYPE_NAME: &'static str = concat!($pkg, "/msg/", stringify!($ty));
         }
     };
 }
@@ -316,6 +319,7 @@ impl RosMessage for StringMsg {
     const PACKAGE: &'static str = "std_msgs";
     const NAME: &'static str = "String";
     const FIELDS: &'static [(&'static str, &'static str)] = &[("data", "string")];
+    const TYPE_NAME: &'static str = "std_msgs/msg/String";
 }
 
 /// biped_msgs/msg/GaitPhase: where the walk is (msg/GaitPhase.msg).

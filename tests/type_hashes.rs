@@ -1,0 +1,52 @@
+//! Our RIHS01 type hashes against the ones rosidl computed when the ROS 2 message packages
+//! were built: the PyPI wheels install `share/<pkg>/msg/<Name>.json` with a `type_hashes`
+//! list (and scripts/setup-python-env builds our biped_msgs the same way).
+
+use std::path::{Path, PathBuf};
+
+use biped_msgs::type_description::{known_types, rihs01};
+
+const WORKSPACE: &str = env!("CARGO_MANIFEST_DIR");
+
+/// `<venv>/share`: beside the interpreter scripts/setup-python-env prints.
+fn venv_share() -> PathBuf {
+    let python = std::env::var_os("BIPED_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(WORKSPACE).join(".venv/bin/biped-python"));
+    let share = python
+        .parent()
+        .and_then(Path::parent)
+        .unwrap()
+        .join("share");
+    assert!(
+        share.join("std_msgs/msg/String.json").exists(),
+        "{} has no std_msgs type descriptions: run scripts/setup-python-env",
+        share.display()
+    );
+    share
+}
+
+#[test]
+fn every_known_type_hashes_as_rosidl_hashed_it() {
+    let share = venv_share();
+    for known in known_types() {
+        let (pkg, name) = known.type_name.split_once("/msg/").unwrap();
+        let file = share.join(pkg).join("msg").join(format!("{name}.json"));
+        let text =
+            std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let theirs = json["type_hashes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|h| h["type_name"] == known.type_name)
+            .and_then(|h| h["hash_string"].as_str())
+            .unwrap_or_else(|| panic!("{} lists no hash for {}", file.display(), known.type_name));
+        assert_eq!(
+            rihs01(known.type_name).unwrap(),
+            theirs,
+            "{}",
+            known.type_name
+        );
+    }
+}
