@@ -1,6 +1,8 @@
 //! `biped`: the commands users run. `biped walk` walks the robot in MuJoCo with the ROS 2
-//! fleet and measures it; `biped launch` runs the fleet; `biped plan` plans a walk offline.
+//! fleet and measures it; `biped launch` runs the fleet; `biped plan` plans a walk offline;
+//! `biped record` and `biped replay` write and play rosbag2 bags.
 
+mod bag;
 mod launch;
 mod plan;
 mod plots;
@@ -95,6 +97,58 @@ enum Command {
         #[arg(long, default_value_t = 1.0)]
         settle: f64,
     },
+    /// Record topics into a rosbag2 bag (Jazzy format, MCAP or sqlite3) until Ctrl-C,
+    /// SIGTERM or --duration.
+    ///
+    /// Types that can be recorded: builtin_interfaces/msg/Time, std_msgs/msg/{Header,
+    /// String}, geometry_msgs/msg/{Point, Point32, Polygon, PolygonStamped, Pose,
+    /// PoseStamped, PointStamped, Quaternion, Twist, Vector3}, sensor_msgs/msg/JointState,
+    /// rosgraph_msgs/msg/Clock, rcl_interfaces/msg/Log, diagnostic_msgs/msg/{DiagnosticArray,
+    /// DiagnosticStatus, KeyValue}, biped_msgs/msg/{GaitPhase, AnkleTargets, WalkCommand}.
+    Record {
+        /// The bag folder to create (must not exist).
+        dir: PathBuf,
+        /// Topics to record (e.g. /joint_commands /cmd_vel).
+        #[arg(long, num_args = 1.., required_unless_present = "all", conflicts_with = "all")]
+        topics: Vec<String>,
+        /// Record every topic whose type is known (see `biped record --help`).
+        #[arg(long)]
+        all: bool,
+        /// Stop after this many seconds.
+        #[arg(long, value_name = "S")]
+        duration: Option<f64>,
+        /// Storage format.
+        #[arg(long, default_value = "mcap", value_parser = ["mcap", "sqlite3"])]
+        storage: String,
+    },
+    /// Play a rosbag2 bag (ours, ROS 2's or the rosbags library's) onto DDS with its
+    /// recorded timing and QoS.
+    Replay {
+        /// The bag folder.
+        dir: PathBuf,
+        /// Speed factor.
+        #[arg(long, default_value_t = 1.0)]
+        rate: f64,
+        /// Play again from the start until Ctrl-C.
+        #[arg(long = "loop")]
+        repeat: bool,
+        /// Play only these topics.
+        #[arg(long, num_args = 1..)]
+        topics: Vec<String>,
+        /// Skip this many seconds of the bag's start.
+        #[arg(long, value_name = "S", default_value_t = 0.0)]
+        start_offset: f64,
+        /// Publish a recorded topic under another name: FROM:=TO (repeatable).
+        #[arg(long, value_name = "FROM:=TO")]
+        remap: Vec<String>,
+        /// Wait up to this many seconds for every topic to have a subscriber (0: no wait).
+        #[arg(long, value_name = "S", default_value_t = 2.0)]
+        wait_for_subscribers: f64,
+        /// Then wait this many seconds before the first message (lets the subscribers'
+        /// side finish matching).
+        #[arg(long, value_name = "S", default_value_t = 0.5)]
+        delay: f64,
+    },
     /// Plan a walk offline; write it as CSV (one row per control tick) and pictures.
     Plan {
         /// Number of steps (swings before the closing half step).
@@ -141,8 +195,117 @@ fn load_params(args: &RobotArgs) -> anyhow::Result<GaitParams> {
     })
 }
 
+/// FROM:=TO.
+fn parse_remap(s: &str) -> anyhow::Result<(String, String)> {
+    match s.split_once(":=") {
+        Some((from, to)) if from.starts_with('/') && to.starts_with('/') && to.len() > 1 => {
+            Ok((from.to_string(), to.to_string()))
+        }
+        _ => anyhow::bail!("--remap '{s}': expected /from:=/to (absolute topic names)"),
+    }
+}
+
+fn check_topic_names(names: &[String]) -> anyhow::Result<()> {
+    for n in names {
+        if !n.starts_with('/') || n.len() < 2 || n.contains(char::is_whitespace) {
+            anyhow::bail!("topic '{n}': expected an absolute topic name such as /joint_commands");
+        }
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Record {
+            dir,
+            topics,
+            all,
+            duration,
+            storage,
+        } => {
+            check_topic_names(&topics)?;
+            if let Some(d) = duration.filter(|d| !(d.is_finite() && *d > 0.0)) {
+                anyhow::bail!("--duration {d}: must be a positive number of seconds");
+            }
+            let storage = bag::storage::StorageKind::from_id(&storage)
+                .with_context(|| format!("--storage {storage}"))?;
+            let stop = biped_msgs::ros::shutdown_flag()?;
+            let context = biped_msgs::ros::context_from_env()?;
+            let opts = bag::record::RecordOptions {
+                dir: dir.clone(),
+                topics,
+                all,
+                duration_s: duration,
+                storage,
+                progress_period_s: 5.0,
+            };
+            let s = bag::record::record(&context.domain_participant(), &opts, &stop)?;
+            println!(
+                "recorded {} messages in {:.1} s into {}",
+                s.total,
+                s.elapsed_s,
+                dir.display()
+            );
+            for (topic, n) in &s.counts {
+                println!("  {topic}: {n}");
+            }
+            for (topic, why) in &s.skipped {
+                println!("  not recorded: {topic}: {why}");
+            }
+            Ok(())
+        }
+        Command::Replay {
+            dir,
+            rate,
+            repeat,
+            topics,
+            start_offset,
+            remap,
+            wait_for_subscribers,
+            delay,
+        } => {
+            check_topic_names(&topics)?;
+            let remaps = remap
+                .iter()
+                .map(|r| parse_remap(r))
+                .collect::<anyhow::Result<Vec<_>>>()?;
+            for (v, name) in [
+                (wait_for_subscribers, "--wait-for-subscribers"),
+                (delay, "--delay"),
+            ] {
+                if !(v.is_finite() && (0.0..=3600.0).contains(&v)) {
+                    anyhow::bail!("{name} {v}: must be within [0, 3600] s");
+                }
+            }
+            let stop = biped_msgs::ros::shutdown_flag()?;
+            let context = biped_msgs::ros::context_from_env()?;
+            let opts = bag::replay::ReplayOptions {
+                dir: dir.clone(),
+                rate,
+                repeat,
+                topics,
+                start_offset_s: start_offset,
+                remaps,
+                wait_for_subscribers_s: wait_for_subscribers,
+                delay_s: delay,
+                progress_period_s: 5.0,
+            };
+            let s = bag::replay::replay(&context.domain_participant(), &opts, &stop)?;
+            let sent: u64 = s.sent.values().sum();
+            println!(
+                "replayed {sent} messages from {} in {:.1} s ({} pass{}), {} skipped, at most {:.1} ms late",
+                dir.display(),
+                s.elapsed_s,
+                s.passes,
+                if s.passes == 1 { "" } else { "es" },
+                s.skipped,
+                s.max_late_s * 1e3
+            );
+            for (topic, n) in &s.sent {
+                println!("  {topic}: {n}");
+            }
+            Ok(())
+        }
         Command::Launch {
             backend,
             robot,
