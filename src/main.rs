@@ -96,6 +96,9 @@ enum Command {
         /// Simulated seconds the robot stands before the walk starts.
         #[arg(long, default_value_t = 1.0)]
         settle: f64,
+        /// Record the walk's topics into this rosbag2 bag folder (MCAP; must not exist).
+        #[arg(long, value_name = "DIR")]
+        bag: Option<PathBuf>,
     },
     /// Record topics into a rosbag2 bag (Jazzy format, MCAP or sqlite3) until Ctrl-C,
     /// SIGTERM or --duration.
@@ -332,6 +335,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             real_time,
             settle,
+            bag,
         } => {
             if !(settle.is_finite() && (0.0..=60.0).contains(&settle)) {
                 anyhow::bail!("--settle {settle}: must be within [0, 60] s");
@@ -346,6 +350,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 settle_s: settle,
                 tail_s: 2.0,
                 stall_s: 30.0,
+                bag,
             })?;
             let r = &outcome.report;
             let m = &r.measured;

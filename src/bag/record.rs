@@ -10,6 +10,7 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
@@ -208,4 +209,44 @@ pub fn record(
         elapsed_s: start.elapsed().as_secs_f64(),
         skipped: rec.skipped,
     })
+}
+
+/// A recording running in a thread of its own (`biped walk --bag`), on its own DDS
+/// participant.
+#[derive(Debug)]
+pub struct Background {
+    stop: Arc<AtomicBool>,
+    handle: std::thread::JoinHandle<Result<RecordSummary>>,
+}
+
+impl Background {
+    /// Starts recording on `domain`; fails at once if the bag folder exists.
+    pub fn start(
+        opts: RecordOptions,
+        domain: u16,
+        range: biped_msgs::ros::DiscoveryRange,
+    ) -> Result<Self> {
+        if opts.dir.exists() {
+            return Err(super::BagError::Exists {
+                dir: opts.dir.clone(),
+            }
+            .into());
+        }
+        let context = biped_msgs::ros::context_for(domain, range)?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        let handle = std::thread::Builder::new()
+            .name("bag-record".into())
+            .spawn(move || record(&context.domain_participant(), &opts, &flag))
+            .context("starting the recording thread")?;
+        Ok(Self { stop, handle })
+    }
+
+    /// Stops, closes the bag and returns what was recorded.
+    pub fn finish(self) -> Result<RecordSummary> {
+        self.stop.store(true, Ordering::SeqCst);
+        self.handle
+            .join()
+            .map_err(|_| anyhow::anyhow!("the recording thread panicked"))?
+    }
 }

@@ -53,6 +53,9 @@ pub struct WalkOptions {
     pub tail_s: f64,
     /// Wall-clock seconds without any simulated time passing before giving up.
     pub stall_s: f64,
+    /// Record every topic of the walk into this rosbag2 bag (MCAP), from before the fleet
+    /// starts until it stops.
+    pub bag: Option<PathBuf>,
 }
 
 /// The walk's outcome: the report and the files written.
@@ -176,6 +179,21 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
             format!("sag_compensation_kp:={}", sim.config().kp_nm_per_rad),
         ));
     }
+    let recording = match &o.bag {
+        Some(dir) => Some(crate::bag::record::Background::start(
+            crate::bag::record::RecordOptions {
+                dir: dir.clone(),
+                topics: Vec::new(),
+                all: true,
+                duration_s: None,
+                storage: crate::bag::storage::StorageKind::Mcap,
+                progress_period_s: 0.0,
+            },
+            domain,
+            range,
+        )?),
+        None => None,
+    };
     let mut fleet = Fleet::new(LaunchOptions {
         backend: "sim".into(),
         robot: o.robot.clone(),
@@ -242,7 +260,10 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     let mut rec = Recording::default();
     let result: anyhow::Result<()> = smol::block_on(executor.run(async {
         // 1. The planner listens: send the command, a few times (it ignores repeats of a
-        //    stamped command), then start the simulator.
+        //    stamped command), then start the simulator. Another subscriber of walk_command
+        //    (a recorder, a user's tool) can make the count non-zero before the planner's
+        //    subscription matches, so the command is also resent until simulated time
+        //    reaches its start time (step 2): by then the planner is ticking.
         let deadline = Instant::now() + Duration::from_secs(60);
         while walk_pub.get_subscription_count(&node) == 0 {
             if let Some(why) = fleet.failed() {
@@ -278,6 +299,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         // 2. Record until the walk is over, or the robot fell.
         let mut last_clock_wall = Instant::now();
         let mut last_progress_s = -1.0;
+        let mut last_resend = Instant::now();
         let end_by_s = o.settle_s + plan_duration_s + o.tail_s + 10.0;
         loop {
             let got = async { Some(clock.async_take().await) }
@@ -292,6 +314,14 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 first_clock_wall.get_or_insert(last_clock_wall);
             }
             rec.drain(&phase, &commands, &states, &base, &cop, &support, &fall);
+            if rec.clock_ns < command.start_time.to_nanos()
+                && last_resend.elapsed() >= Duration::from_millis(20)
+            {
+                last_resend = Instant::now();
+                walk_pub
+                    .publish(command.clone())
+                    .map_err(|e| anyhow::anyhow!("publish walk_command: {e:?}"))?;
+            }
             if let Some(why) = fleet.failed() {
                 anyhow::bail!("{why}");
             }
@@ -324,7 +354,10 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     let wall_s = wall0.elapsed().as_secs_f64();
     let stepping_wall_s = first_clock_wall.map_or(wall_s, |t| t.elapsed().as_secs_f64());
     fleet.stop(false);
+    // Close the bag even when the walk failed: it is how the failure is looked at.
+    let recorded = recording.map(|r| r.finish()).transpose();
     result?;
+    let recorded = recorded?;
     let summary = report::summarize(
         &model,
         &planner,
@@ -347,6 +380,15 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     files.extend(pictures::write_pictures(
         &o.out, &model, &planner, &plan, &rec, &summary,
     )?);
+    if let (Some(dir), Some(r)) = (&o.bag, &recorded) {
+        println!(
+            "recorded {} messages on {} topics into {}",
+            r.total,
+            r.counts.len(),
+            dir.display()
+        );
+        files.push(dir.join("metadata.yaml"));
+    }
     Ok(WalkOutcome {
         report: summary,
         files,
