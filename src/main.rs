@@ -144,12 +144,13 @@ enum Command {
         /// Publish a recorded topic under another name: FROM:=TO (repeatable).
         #[arg(long, value_name = "FROM:=TO")]
         remap: Vec<String>,
-        /// Wait up to this many seconds for every topic to have a subscriber (0: no wait).
-        #[arg(long, value_name = "S", default_value_t = 2.0)]
+        /// First wait up to this many seconds for every topic to have a subscriber.
+        #[arg(long, value_name = "S", default_value_t = 0.0)]
         wait_for_subscribers: f64,
-        /// Then wait this many seconds before the first message (lets the subscribers'
-        /// side finish matching).
-        #[arg(long, value_name = "S", default_value_t = 0.5)]
+        /// Then wait this many seconds before the first message, and on until no subscriber
+        /// has appeared for 1 s (at most 5 s more): DDS discovery between our nodes and a
+        /// new publisher takes up to ~4 s, and what is sent before it is lost to them.
+        #[arg(long, value_name = "S", default_value_t = 5.0)]
         delay: f64,
     },
     /// Plan a walk offline; write it as CSV (one row per control tick) and pictures.

@@ -58,13 +58,13 @@ fn to_wire<T: RosMessage>(value: &T) -> Vec<u8> {
     let body = <CDRSerializerAdapter<T> as SerializerAdapter<T>>::to_bytes(value)
         .unwrap_or_else(|e| panic!("CDR encoding of {value:?} failed: {e}"));
     let encoding = <CDRSerializerAdapter<T> as SerializerAdapter<T>>::output_encoding();
-    rustdds::bytes::Bytes::from(SerializedPayload::new_from_bytes(encoding, body)).to_vec()
+    bytes::Bytes::from(SerializedPayload::new_from_bytes(encoding, body)).to_vec()
 }
 
 /// A payload decoded as a ros2-client subscription does (`SerializedPayload::from_bytes`,
 /// then `CDRDeserializerAdapter`), with the number of body bytes the decoder consumed.
 fn from_wire<T: RosMessage>(wire: &[u8]) -> Result<(T, usize), String> {
-    let payload = SerializedPayload::from_bytes(&rustdds::bytes::Bytes::copy_from_slice(wire))
+    let payload = SerializedPayload::from_bytes(&bytes::Bytes::copy_from_slice(wire))
         .map_err(|e| format!("not a serialized payload: {e}"))?;
     let encoding = payload.representation_identifier;
     let value =

@@ -437,3 +437,222 @@ mod erased {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::metadata::BagQos;
+    use super::*;
+
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("biped-bag-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    fn topic(name: &str, type_name: &str) -> TopicInfo {
+        TopicInfo {
+            name: name.into(),
+            type_name: type_name.into(),
+            serialization_format: "cdr".into(),
+            qos: vec![BagQos::reliable(7)],
+            type_hash: biped_msgs::type_description::rihs01(type_name).unwrap(),
+            definition: biped_msgs::type_description::ros2msg_definition(type_name).unwrap(),
+        }
+    }
+
+    /// std_msgs/String "hi": header, length 3 (with the NUL), "hi\0".
+    const HI: &[u8] = &[0, 1, 0, 0, 3, 0, 0, 0, b'h', b'i', 0, 0];
+
+    /// A bag with two topics: /a (3 messages), /b (1), at 10, 20, 25 and 30 ns.
+    fn write_bag(dir: &Path, kind: StorageKind) -> BagInfo {
+        let mut w = BagWriter::create(dir, kind).unwrap();
+        let a = w.add_topic(topic("/a", "std_msgs/msg/String")).unwrap();
+        let b = w.add_topic(topic("/b", "geometry_msgs/msg/Twist")).unwrap();
+        let twist = [[0u8, 1, 0, 0].as_slice(), &[0u8; 48]].concat();
+        w.write(a, 10, HI).unwrap();
+        w.write(a, 20, HI).unwrap();
+        w.write(b, 25, &twist).unwrap();
+        w.write(a, 30, HI).unwrap();
+        w.finish().unwrap()
+    }
+
+    fn set_metadata(dir: &Path, from: &str, to: &str) {
+        let p = dir.join("metadata.yaml");
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.contains(from), "{text}");
+        std::fs::write(&p, text.replacen(from, to, 1)).unwrap();
+    }
+
+    #[test]
+    fn a_written_bag_reads_back_with_its_topics_times_and_bytes() {
+        for kind in [StorageKind::Mcap, StorageKind::Sqlite3] {
+            let dir = tmp(&format!("roundtrip-{}", kind.id()));
+            let info = write_bag(&dir, kind);
+            assert_eq!(info.message_count, 4);
+            assert_eq!(info.starting_time.nanoseconds_since_epoch, 10);
+            assert_eq!(info.duration.nanoseconds, 20);
+            assert_eq!(
+                info.relative_file_paths,
+                [format!(
+                    "{}_0.{}",
+                    dir.file_name().unwrap().to_str().unwrap(),
+                    kind.extension()
+                )]
+            );
+            let bag = Bag::open(&dir).unwrap();
+            assert_eq!(bag.kind, kind);
+            assert_eq!(
+                bag.topics,
+                [
+                    topic("/a", "std_msgs/msg/String"),
+                    topic("/b", "geometry_msgs/msg/Twist")
+                ]
+            );
+            let got: Vec<_> = bag
+                .messages
+                .iter()
+                .map(|m| (m.topic, m.time_ns, m.data.len()))
+                .collect();
+            assert_eq!(got, [(0, 10, 12), (0, 20, 12), (1, 25, 52), (0, 30, 12)]);
+            assert_eq!(bag.messages[0].data, HI);
+            assert_eq!(bag.unreadable, 0);
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+    }
+
+    #[test]
+    fn an_existing_folder_is_not_overwritten() {
+        let dir = tmp("exists");
+        std::fs::create_dir_all(&dir).unwrap();
+        let e = BagWriter::create(&dir, StorageKind::Mcap).unwrap_err();
+        assert!(matches!(e, BagError::Exists { .. }), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_truncated_mcap_file_is_refused_as_truncated() {
+        let dir = tmp("truncated");
+        write_bag(&dir, StorageKind::Mcap);
+        let file = dir.join(format!(
+            "{}_0.mcap",
+            dir.file_name().unwrap().to_str().unwrap()
+        ));
+        let bytes = std::fs::read(&file).unwrap();
+        std::fs::write(&file, &bytes[..bytes.len() - 40]).unwrap();
+        let e = Bag::open(&dir).unwrap_err();
+        assert!(matches!(e, BagError::Storage { .. }), "{e}");
+        assert!(e.to_string().contains("truncated"), "{e}");
+        assert!(e.to_string().contains("_0.mcap"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn wrong_counts_in_metadata_are_named_with_both_numbers() {
+        for kind in [StorageKind::Mcap, StorageKind::Sqlite3] {
+            let dir = tmp(&format!("counts-{}", kind.id()));
+            write_bag(&dir, kind);
+            set_metadata(&dir, "message_count: 3", "message_count: 5");
+            let e = Bag::open(&dir).unwrap_err();
+            assert!(matches!(e, BagError::Mismatch { .. }), "{e}");
+            assert!(
+                e.to_string()
+                    .contains("topic /a: message_count 5 in metadata.yaml, 3 in the storage"),
+                "{e}"
+            );
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+    }
+
+    #[test]
+    fn an_unknown_storage_id_is_named() {
+        let dir = tmp("storage-id");
+        write_bag(&dir, StorageKind::Mcap);
+        set_metadata(&dir, "storage_identifier: mcap", "storage_identifier: hdf5");
+        let e = Bag::open(&dir).unwrap_err();
+        assert!(
+            matches!(&e, BagError::UnknownStorage { id, .. } if id == "hdf5"),
+            "{e}"
+        );
+        assert!(e.to_string().contains("'hdf5'"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_missing_storage_file_and_a_compressed_bag_are_named() {
+        let dir = tmp("missing-file");
+        write_bag(&dir, StorageKind::Sqlite3);
+        set_metadata(&dir, "compression_mode: ''", "compression_mode: file");
+        let e = Bag::open(&dir).unwrap_err();
+        assert!(
+            matches!(&e, BagError::Compressed { mode, .. } if mode == "file"),
+            "{e}"
+        );
+        set_metadata(&dir, "compression_mode: file", "compression_mode: ''");
+        let file = dir.join(format!(
+            "{}_0.db3",
+            dir.file_name().unwrap().to_str().unwrap()
+        ));
+        std::fs::remove_file(&file).unwrap();
+        let e = Bag::open(&dir).unwrap_err();
+        assert!(
+            matches!(&e, BagError::MissingFile { file: f } if *f == file),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn an_mcap_channel_without_its_schema_is_refused_naming_the_topic() {
+        let dir = tmp("no-schema");
+        write_bag(&dir, StorageKind::Mcap);
+        let file = dir.join(format!(
+            "{}_0.mcap",
+            dir.file_name().unwrap().to_str().unwrap()
+        ));
+        // The same file, but /b's channel refers to a schema that was never written.
+        std::fs::remove_file(&file).unwrap();
+        let mut w = mcap::WriteOptions::new()
+            .profile("ros2")
+            .create(std::io::BufWriter::new(
+                std::fs::File::create(&file).unwrap(),
+            ))
+            .unwrap();
+        let s = w
+            .add_schema("std_msgs/msg/String", "ros2msg", b"string data\n")
+            .unwrap();
+        let a = w.add_channel(s, "/a", "cdr", &Default::default()).unwrap();
+        let b = w
+            .add_channel_with_id(9, 0, "/b", "cdr", &Default::default())
+            .unwrap();
+        for (t, c) in [(10, a), (20, a), (25, b), (30, a)] {
+            let h = mcap::records::MessageHeader {
+                channel_id: c,
+                sequence: 0,
+                log_time: t,
+                publish_time: t,
+            };
+            w.write_to_known_channel(&h, HI).unwrap();
+        }
+        w.finish().unwrap();
+        drop(w);
+        let e = Bag::open(&dir).unwrap_err();
+        assert!(
+            matches!(&e, BagError::MissingSchema { topic, .. } if topic == "/b"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn broken_metadata_yaml_is_named() {
+        let dir = tmp("bad-yaml");
+        write_bag(&dir, StorageKind::Mcap);
+        set_metadata(&dir, "version: 9", "version: nine");
+        let e = Bag::open(&dir).unwrap_err();
+        assert!(matches!(e, BagError::Metadata { .. }), "{e}");
+        assert!(e.to_string().contains("metadata.yaml"), "{e}");
+        let e = Bag::open(&dir.join("nowhere")).unwrap_err();
+        assert!(matches!(e, BagError::NoMetadata { .. }), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

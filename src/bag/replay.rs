@@ -43,7 +43,7 @@ pub struct ReplayOptions {
     pub remaps: Vec<(String, String)>,
     /// Wait up to this long for every topic to have a subscriber (s; 0 = do not wait).
     pub wait_for_subscribers_s: f64,
-    /// Then wait this long before the first message (s).
+    /// Then wait this long before the first message, and until discovery is quiet (s).
     pub delay_s: f64,
     /// Print progress every this many seconds (0: never).
     pub progress_period_s: f64,
@@ -97,6 +97,84 @@ fn sleep_until(t: Instant, stop: &AtomicBool) -> bool {
             return true;
         }
         std::thread::sleep((t - now).min(Duration::from_millis(20)));
+    }
+}
+
+/// After the delay, how long no subscriber may have come or gone before the first message.
+const SUBSCRIBERS_QUIET_S: f64 = 1.0;
+/// The delay is extended by at most this while subscribers keep coming.
+const MAX_EXTENSION_S: f64 = 5.0;
+
+/// Waits for subscribers before playing, printing each one that comes or goes: first, at
+/// most `wait_s`, until every topic has one; then `delay_s`, extended (by at most
+/// [`MAX_EXTENSION_S`]) until none has come or gone for [`SUBSCRIBERS_QUIET_S`].
+///
+/// Why: a message sent before a subscriber has matched the writer is lost to it (volatile
+/// durability), and discovery is not instant: Fast DDS answers a new participant at once,
+/// RustDDS participants (our nodes) were seen here 2 to 4 s after the writers appeared.
+/// Returns false if stopped.
+fn wait_for_subscribers(
+    dp: &DomainParticipant,
+    tracks: &BTreeMap<usize, Track>,
+    wait_s: f64,
+    delay_s: f64,
+    stop: &AtomicBool,
+) -> bool {
+    let start = Instant::now();
+    let count = || {
+        tracks
+            .values()
+            .map(|t| t.writer.subscribers(dp))
+            .collect::<Vec<_>>()
+    };
+    let mut counts = count();
+    let mut changed = start;
+    let poll = |counts: &mut Vec<usize>, changed: &mut Instant| {
+        let c = count();
+        for (t, (old, new)) in tracks.values().zip(counts.iter().zip(&c)) {
+            if old != new {
+                eprintln!(
+                    "biped replay: {}: {new} subscriber{} ({:.2} s)",
+                    t.name,
+                    if *new == 1 { "" } else { "s" },
+                    start.elapsed().as_secs_f64()
+                );
+                *changed = Instant::now();
+            }
+        }
+        *counts = c;
+    };
+    let until = start + Duration::from_secs_f64(wait_s);
+    while counts.contains(&0) && Instant::now() < until {
+        if stop.load(Ordering::SeqCst) {
+            return false;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+        poll(&mut counts, &mut changed);
+    }
+    if wait_s > 0.0 {
+        for (t, _) in tracks.values().zip(&counts).filter(|(_, n)| **n == 0) {
+            eprintln!(
+                "biped replay: warning: no subscriber on {} after {wait_s} s; playing anyway",
+                t.name
+            );
+        }
+    }
+    let delay_end = Instant::now() + Duration::from_secs_f64(delay_s);
+    let hard_end = delay_end + Duration::from_secs_f64(MAX_EXTENSION_S);
+    loop {
+        if stop.load(Ordering::SeqCst) {
+            return false;
+        }
+        let now = Instant::now();
+        if now >= hard_end
+            || (now >= delay_end
+                && (now - changed).as_secs_f64() >= SUBSCRIBERS_QUIET_S.min(delay_s))
+        {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+        poll(&mut counts, &mut changed);
     }
 }
 
@@ -168,25 +246,7 @@ pub fn replay(
         bail!("nothing to play: no message of the chosen topics after the start offset");
     }
 
-    if opts.wait_for_subscribers_s > 0.0 {
-        let until = Instant::now() + Duration::from_secs_f64(opts.wait_for_subscribers_s);
-        while tracks.values().any(|t| t.writer.subscribers(dp) == 0) && Instant::now() < until {
-            if stop.load(Ordering::SeqCst) {
-                return Ok(ReplaySummary::default());
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        for t in tracks.values().filter(|t| t.writer.subscribers(dp) == 0) {
-            eprintln!(
-                "biped replay: warning: no subscriber on {} after {} s; playing anyway",
-                t.name, opts.wait_for_subscribers_s
-            );
-        }
-    }
-    if !sleep_until(
-        Instant::now() + Duration::from_secs_f64(opts.delay_s.max(0.0)),
-        stop,
-    ) {
+    if !wait_for_subscribers(dp, &tracks, opts.wait_for_subscribers_s, opts.delay_s, stop) {
         return Ok(ReplaySummary::default());
     }
 

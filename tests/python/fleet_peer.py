@@ -112,9 +112,9 @@ class Peer:
         return bool(walked) and self.phases[-1]["phase"] == "idle"
 
 
-def start_nodes(bin_dir, params, extra=None):
+def start_nodes(bin_dir, params, extra=None, only=None):
     procs = {}
-    for name in NODES:
+    for name in only or NODES:
         args = [os.path.join(bin_dir, name), "--ros-args"]
         if params:
             args += ["--params-file", params]

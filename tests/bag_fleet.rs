@@ -1,0 +1,346 @@
+//! rosbag2 record and replay against the running fleet, checked by independent tools:
+//!
+//! - `biped record` of the walking fleet (MCAP with `--all`, stopped by Ctrl-C; sqlite3 with
+//!   `--topics`, stopped by `--duration`): each bag is read by `rosbags` (Jazzy typestore)
+//!   and by `mcap` + `mcap-ros2-support` or rclpy (tests/python/bag_check.py --strict):
+//!   every message decodes; counts, topics, types, time range and QoS agree with
+//!   metadata.yaml; the RIHS01 hashes equal rosbags' and rosidl's.
+//! - `biped replay` of bags written by `rosbags` (standing in for `ros2 bag record`), MCAP
+//!   and sqlite3, with /cmd_vel and /joint_commands, into gait_planner + joint_bridge: the
+//!   planner walks, the bridge moves the joint, and every message arrives with its recorded
+//!   spacing within 5 ms (Fast DDS's reception stamps, on loopback).
+//!
+//! Each scenario runs in a private network namespace (tests/python/bag_peer.py).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::{Value, json};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn python() -> PathBuf {
+    let p = std::env::var_os("BIPED_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join(".venv/bin/biped-python"));
+    assert!(
+        p.exists(),
+        "no ROS 2 Python at {}: run scripts/setup-python-env",
+        p.display()
+    );
+    p
+}
+
+fn bin_dir() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_BIN_EXE_biped"))
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    for node in ["gait_planner", "ik_solver", "joint_bridge"] {
+        assert!(
+            dir.join(node).is_file(),
+            "node binary {node} not built: run cargo build --workspace"
+        );
+    }
+    dir
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("biped-bag-fleet-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs a bag_peer.py scenario in a new network namespace; returns its JSON.
+fn peer(scenario: &str, path: &Path, domain_id: u32) -> Value {
+    let inner = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$1\" \"$2\" \"$3\" \"$4\"";
+    let out = Command::new("unshare")
+        .args(["-n", "sh", "-c", inner])
+        .arg(python())
+        .arg(root().join("tests/python/bag_peer.py"))
+        .arg(scenario)
+        .arg(bin_dir())
+        .arg(path)
+        .env("ROS_DOMAIN_ID", domain_id.to_string())
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .output()
+        .expect("unshare runs (root needed for a private network namespace)");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "bag_peer {scenario} failed: {stderr}");
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("bag_peer output is not JSON ({e}): {stderr}"))
+}
+
+/// bag_check.py --strict on a bag: its JSON summary (the test fails on any failure).
+fn check(bag: &Path) -> Value {
+    let out = Command::new(python())
+        .arg(root().join("tests/python/bag_check.py"))
+        .arg(bag)
+        .arg("--strict")
+        .output()
+        .unwrap();
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "bag_check output is not JSON ({e}): {}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    assert!(
+        out.status.success() && v["ok"] == true,
+        "{}: {:#}",
+        bag.display(),
+        v["failures"]
+    );
+    v
+}
+
+fn topic<'a>(summary: &'a Value, name: &str) -> &'a Value {
+    let t = &summary["topics"][name];
+    assert!(t.is_object(), "no {name} in {:#}", summary["topics"]);
+    t
+}
+
+#[test]
+fn a_recorded_fleet_bag_is_read_by_two_independent_readers() {
+    let dir = scratch("record");
+    let v = peer("record", &dir, 72);
+    assert_eq!(v["flow"], true, "the fleet never flowed: {v:#}");
+    assert_eq!(
+        v["walked"], true,
+        "the fleet did not walk while recorded: {v:#}"
+    );
+    let all = &v["record_all"];
+    assert_eq!(
+        all["returncode"], 0,
+        "biped record (Ctrl-C) failed: {all:#}"
+    );
+    assert!(
+        all["stdout"].as_str().unwrap().contains("recorded "),
+        "{all:#}"
+    );
+    let sql = &v["record_sqlite"];
+    assert_eq!(
+        sql["ended_by_duration"], true,
+        "biped record --duration did not end by itself: {sql:#}"
+    );
+
+    // MCAP, every topic, cut by Ctrl-C.
+    let mcap = check(Path::new(v["bags"]["mcap"].as_str().unwrap()));
+    assert_eq!(mcap["storage"], "mcap");
+    assert_eq!(mcap["readers"], json!(["rosbags", "mcap"]));
+    for (name, ty) in [
+        ("/joint_commands", "sensor_msgs/msg/JointState"),
+        ("/joint_states", "sensor_msgs/msg/JointState"),
+        ("/gait/phase", "biped_msgs/msg/GaitPhase"),
+        ("/gait/ankle_targets", "biped_msgs/msg/AnkleTargets"),
+        ("/walk_command", "biped_msgs/msg/WalkCommand"),
+        ("/cmd_vel", "geometry_msgs/msg/Twist"),
+    ] {
+        let t = topic(&mcap, name);
+        assert_eq!(t["type"], ty, "{name}");
+        assert!(
+            t["hash"].as_str().unwrap().starts_with("RIHS01_"),
+            "{name}: {t}"
+        );
+    }
+    // The fleet publishes at 100 Hz; a walk of one step takes well over 5 s.
+    for name in ["/joint_commands", "/gait/phase", "/joint_states"] {
+        let n = topic(&mcap, name)["count"].as_u64().unwrap();
+        assert!(n > 500, "{name}: only {n} messages");
+    }
+    assert_eq!(topic(&mcap, "/walk_command")["count"], 1);
+    // The QoS the fleet's publishers offer: reliable, volatile.
+    let q = &topic(&mcap, "/joint_commands")["qos"][0];
+    assert_eq!(q["reliability"], "reliable", "{q}");
+    assert_eq!(q["durability"], "volatile", "{q}");
+
+    // sqlite3, chosen topics, ended by --duration.
+    let db = check(Path::new(v["bags"]["sqlite3"].as_str().unwrap()));
+    assert_eq!(db["storage"], "sqlite3");
+    assert_eq!(db["readers"], json!(["rosbags", "rclpy"]));
+    let names: Vec<_> = db["topics"].as_object().unwrap().keys().cloned().collect();
+    assert_eq!(
+        names,
+        [
+            "/cmd_vel",
+            "/gait/phase",
+            "/joint_commands",
+            "/walk_command"
+        ]
+    );
+    let n = topic(&db, "/joint_commands")["count"].as_u64().unwrap();
+    assert!(
+        (800..=1250).contains(&n),
+        "12 s at 100 Hz, less discovery: {n}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+const T0_NS: i64 = 1_700_000_000_000_000_000;
+const LEG_JOINTS: [&str; 10] = [
+    "l_hip_roll",
+    "l_hip_pitch",
+    "l_knee",
+    "l_ankle_pitch",
+    "l_ankle_roll",
+    "r_hip_roll",
+    "r_hip_pitch",
+    "r_knee",
+    "r_ankle_pitch",
+    "r_ankle_roll",
+];
+/// The left knee goes from 0 to this over the bag (0.075 rad/s: within every limit).
+const KNEE_END_RAD: f64 = 0.3;
+
+/// A rosbags-written bag: /joint_commands every 20 ms for 4 s (the left knee ramping),
+/// /cmd_vel "walk at 2 cm/s" at 0.5 s and "stop" at 3.5 s.
+fn make_bag(dir: &Path, storage: &str) -> PathBuf {
+    let qos = json!({"reliability": "reliable", "durability": "volatile", "history": "keep_last", "depth": 10});
+    let mut messages = Vec::new();
+    for i in 0..=200 {
+        let t = T0_NS + i * 20_000_000;
+        let mut position = vec![0.0; LEG_JOINTS.len()];
+        position[2] = KNEE_END_RAD * i as f64 / 200.0;
+        messages.push(json!({"topic": "/joint_commands", "t_ns": t, "msg": {
+            "header": {"stamp": {"sec": t / 1_000_000_000, "nanosec": t % 1_000_000_000}, "frame_id": "bag"},
+            "name": LEG_JOINTS, "position": position}}));
+    }
+    for (t, x) in [(500_000_000, 0.02), (3_500_000_000, 0.0)] {
+        messages.push(json!({"topic": "/cmd_vel", "t_ns": T0_NS + t, "msg": {"linear": {"x": x}}}));
+    }
+    messages.sort_by_key(|m| m["t_ns"].as_i64().unwrap());
+    let spec = json!({
+        "topics": [
+            {"name": "/joint_commands", "type": "sensor_msgs/msg/JointState", "qos": qos},
+            {"name": "/cmd_vel", "type": "geometry_msgs/msg/Twist", "qos": qos},
+        ],
+        "messages": messages,
+    });
+    let spec_path = dir.join(format!("spec_{storage}.json"));
+    std::fs::write(&spec_path, spec.to_string()).unwrap();
+    let bag = dir.join(format!("rosbags_{storage}"));
+    let out = Command::new(python())
+        .arg(root().join("tests/python/bag_make.py"))
+        .arg(&bag)
+        .args(["--storage", storage, "--spec"])
+        .arg(&spec_path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "bag_make: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    bag
+}
+
+/// How far each message arrived from its recorded time, after the one constant shift
+/// between the two clocks (the median of arrival − recorded): the worst, in ms.
+fn worst_timing_error_ms(recorded_ns: &[i64], arrived_ns: &[i64]) -> f64 {
+    assert_eq!(recorded_ns.len(), arrived_ns.len());
+    let mut d: Vec<i64> = arrived_ns
+        .iter()
+        .zip(recorded_ns)
+        .map(|(a, r)| a - r)
+        .collect();
+    d.sort_unstable();
+    let shift = d[d.len() / 2];
+    d.iter()
+        .map(|x| ((x - shift) as f64 * 1e-6).abs())
+        .fold(0.0, f64::max)
+}
+
+fn replay_into_the_fleet(storage: &str, domain_id: u32) {
+    let dir = scratch(&format!("replay-{storage}"));
+    let bag = make_bag(&dir, storage);
+    let v = peer("replay", &bag, domain_id);
+    assert_eq!(v["states_flowing"], true, "{v:#}");
+    let r = &v["replay"];
+    assert_eq!(r["returncode"], 0, "biped replay failed: {r:#}");
+    assert!(
+        r["stdout"]
+            .as_str()
+            .unwrap()
+            .contains("replayed 203 messages"),
+        "{r:#}"
+    );
+
+    // Every message arrived, in order, with its recorded spacing.
+    let cmds = v["arrivals"]["/joint_commands"].as_array().unwrap();
+    let stamps: Vec<i64> = cmds.iter().map(|c| c["stamp"].as_i64().unwrap()).collect();
+    let recorded: Vec<i64> = (0..=200).map(|i| T0_NS + i * 20_000_000).collect();
+    assert_eq!(
+        stamps, recorded,
+        "joint commands lost, repeated or reordered"
+    );
+    let vel = v["arrivals"]["/cmd_vel"].as_array().unwrap();
+    assert_eq!(
+        vel.iter()
+            .map(|c| c["x"].as_f64().unwrap())
+            .collect::<Vec<_>>(),
+        [0.02, 0.0]
+    );
+    let mut all: Vec<(i64, i64)> = cmds
+        .iter()
+        .zip(&recorded)
+        .map(|(c, r)| (*r, c["recv_ns"].as_i64().unwrap()))
+        .collect();
+    all.push((T0_NS + 500_000_000, vel[0]["recv_ns"].as_i64().unwrap()));
+    all.push((T0_NS + 3_500_000_000, vel[1]["recv_ns"].as_i64().unwrap()));
+    all.sort();
+    let (rec, arr): (Vec<i64>, Vec<i64>) = all.into_iter().unzip();
+    let worst = worst_timing_error_ms(&rec, &arr);
+    assert!(
+        worst < 5.0,
+        "a replayed message was {worst:.2} ms off its recorded time"
+    );
+
+    // The fleet acted: the planner walked on /cmd_vel, the bridge followed the knee.
+    let phases = v["phases"].as_array().unwrap();
+    assert!(
+        phases.iter().any(|p| p != "idle"),
+        "the planner never left idle: {phases:?}"
+    );
+    let last = &v["states_after"][0];
+    let names: Vec<&str> = last["name"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    let knee = names
+        .iter()
+        .position(|n| *n == "l_knee")
+        .expect("l_knee in joint_states");
+    let got = last["position"][knee].as_f64().unwrap();
+    assert!(
+        (got - KNEE_END_RAD).abs() < 1e-3,
+        "l_knee ended at {got} rad, commanded {KNEE_END_RAD}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_rosbags_mcap_bag_replays_into_the_fleet_with_its_timing() {
+    replay_into_the_fleet("mcap", 73);
+}
+
+#[test]
+fn a_rosbags_sqlite3_bag_replays_into_the_fleet_with_its_timing() {
+    replay_into_the_fleet("sqlite3", 74);
+}
+
+#[test]
+fn the_timing_measure_sees_a_late_message() {
+    // The measure itself: a message 6 ms late is seen as 6 ms off.
+    assert_eq!(
+        worst_timing_error_ms(&[0, 10_000_000, 20_000_000], &[5, 10_000_005, 20_000_005]),
+        0.0
+    );
+    let e = worst_timing_error_ms(&[0, 10_000_000, 20_000_000], &[0, 10_000_000, 26_000_000]);
+    assert!((e - 6.0).abs() < 1e-9, "{e}");
+}

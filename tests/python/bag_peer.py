@@ -1,0 +1,114 @@
+"""The ROS 2 side of the bag tests: starts fleet nodes, runs `biped record` / `biped replay`
+as a user would, watches the fleet with rclpy, and prints what it saw as one JSON object.
+The assertions are the Rust test's (tests/bag_fleet.rs).
+
+    python bag_peer.py record BIN_DIR OUT_DIR     # record the walking fleet, two bags
+    python bag_peer.py replay BIN_DIR BAG_DIR     # replay a bag into gait_planner + joint_bridge
+
+Run inside a private network namespace (the Rust test does it).
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import rclpy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from geometry_msgs.msg import Twist
+from sensor_msgs.msg import JointState
+
+from fleet_peer import Peer, start_nodes, stop_nodes, stamp_ns
+
+
+def receive_ns(info):
+    """Fast DDS's reception time of a message (system clock, ns), else now."""
+    t = info.get("received_timestamp", 0) if isinstance(info, dict) else getattr(info, "received_timestamp", 0)
+    return int(t) if t else time.time_ns()
+
+
+def spin_while(peer, proc, limit_s):
+    """Spins the peer until `proc` exits (or the limit); returns its exit code or None."""
+    end = time.monotonic() + limit_s
+    while time.monotonic() < end:
+        rclpy.spin_once(peer.node, timeout_sec=0.005)
+        if proc.poll() is not None:
+            return proc.returncode
+    return None
+
+
+def finish(proc, sig=signal.SIGINT, timeout=20):
+    if proc.poll() is None:
+        proc.send_signal(sig)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        out, err = proc.communicate()
+    return {"returncode": proc.returncode, "stdout": out[-4000:], "stderr": err[-4000:]}
+
+
+def scenario_record(bin_dir, out_dir):
+    biped = os.path.join(bin_dir, "biped")
+    nodes = start_nodes(bin_dir, None)
+    peer = Peer()
+    out = {"flow": peer.wait_for_flow()}
+    mcap_bag = os.path.join(out_dir, "fleet_mcap")
+    sqlite_bag = os.path.join(out_dir, "fleet_sqlite")
+    rec_all = subprocess.Popen([biped, "record", mcap_bag, "--all"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    rec_sql = subprocess.Popen([biped, "record", sqlite_bag, "--storage", "sqlite3", "--duration", "12",
+                                "--topics", "/joint_commands", "/gait/phase", "/cmd_vel", "/walk_command"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # The recorders subscribe to what they discover; give discovery a moment, then walk.
+    peer.spin(3.0)
+    peer.wait_for_subscribers(peer.walk_pub)
+    peer.walk(1)
+    out["walked"] = peer.spin(40.0, peer.idle_after_walking)
+    peer.cmd_vel_pub.publish(Twist())  # stop: a no-op when idle, recorded on /cmd_vel
+    peer.spin(1.0)
+    # Ctrl-C the --all recorder mid-stream: the bag must still be complete.
+    out["record_all"] = finish(rec_all)
+    rc = spin_while(peer, rec_sql, 30.0)
+    out["record_sqlite"] = finish(rec_sql)
+    out["record_sqlite"]["ended_by_duration"] = rc == 0
+    out["bags"] = {"mcap": mcap_bag, "sqlite3": sqlite_bag}
+    out["nodes"] = stop_nodes(nodes)
+    return out
+
+
+def scenario_replay(bin_dir, bag_dir):
+    biped = os.path.join(bin_dir, "biped")
+    # No ik_solver: the bag's joint commands are the only ones the bridge gets.
+    nodes = start_nodes(bin_dir, None, only=["gait_planner", "joint_bridge"])
+    peer = Peer()
+    qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+    arrivals = {"/cmd_vel": [], "/joint_commands": []}
+    # Reception times of what the replay sends, stamped by Fast DDS on arrival.
+    peer.node.create_subscription(Twist, "/cmd_vel", lambda m, info: arrivals["/cmd_vel"].append(
+        {"recv_ns": receive_ns(info), "x": m.linear.x}), qos)
+    peer.node.create_subscription(JointState, "/joint_commands", lambda m, info: arrivals["/joint_commands"].append(
+        {"recv_ns": receive_ns(info), "stamp": stamp_ns(m.header)}), qos)
+    out = {"states_flowing": peer.spin(30.0, lambda: len(peer.states) > 5)}
+    states_before = len(peer.states)
+    replay = subprocess.Popen([biped, "replay", bag_dir], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    spin_while(peer, replay, 60.0)
+    peer.spin(1.5)
+    out["replay"] = finish(replay)
+    out["arrivals"] = arrivals
+    out["phases"] = sorted({p["phase"] for p in peer.phases})
+    out["states_after"] = peer.states[states_before:][-1:] + peer.states[states_before:][:1]
+    out["nodes"] = stop_nodes(nodes)
+    return out
+
+
+def main():
+    scenario, bin_dir, path = sys.argv[1], sys.argv[2], sys.argv[3]
+    result = {"record": scenario_record, "replay": scenario_replay}[scenario](bin_dir, path)
+    json.dump(result, sys.stdout)
+
+
+if __name__ == "__main__":
+    main()
