@@ -17,7 +17,9 @@
 //! `/clock` and the states are sent again every 50 ms so late peers catch up). Every node on
 //! `use_sim_time` then computes exactly what it would in real time, whatever the machine's
 //! load: the run is deterministic. `real_time_factor` paces the simulation against the wall
-//! clock (1 = real time; 0 = as fast as the fleet answers).
+//! clock (1 = real time; 0 = as fast as the fleet answers). After a stall (the fleet late to
+//! answer) a paced simulation makes up at most 50 ms and then goes on at its pace, behind
+//! the wall clock: it never runs faster than its pace for long, as a robot could not.
 //!
 //! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `mjcf_file` and
 //! `joint_map_file` (a MuJoCo scene of the robot and its map to the URDF's names, instead of
@@ -334,13 +336,16 @@ fn run() -> anyhow::Result<()> {
         }
     ));
 
+    /// Simulated time a paced simulation makes up after a stall, at most (s).
+    const MAX_CATCH_UP_S: f64 = 0.05;
     let mut t_ns: i64 = 0;
     let mut newest_answer_ns = i64::MIN;
     let mut reported_fall = false;
     let mut unknown_reported = std::collections::HashSet::new();
     let mut last_publish = Instant::now();
     let mut inbox: Option<JointState> = None;
-    let wall0 = Instant::now();
+    // The wall time of simulated time 0 at the pace; moved later after a stall.
+    let mut wall0 = Instant::now();
     out.publish(&ros, &sim, Time::from_nanos(t_ns));
     let result: anyhow::Result<()> = smol::block_on(executor.run(async {
         while !stop.load(Ordering::SeqCst) {
@@ -395,6 +400,12 @@ fn run() -> anyhow::Result<()> {
             if answered && due {
                 sim.physics_steps(steps_per_tick)?;
                 t_ns += period_ns;
+                if rtf > 0.0 {
+                    let behind_s = wall0.elapsed().as_secs_f64() * rtf - t_ns as f64 * 1e-9;
+                    if behind_s > MAX_CATCH_UP_S {
+                        wall0 += Duration::from_secs_f64((behind_s - MAX_CATCH_UP_S) / rtf);
+                    }
+                }
                 out.publish(&ros, &sim, Time::from_nanos(t_ns));
                 last_publish = Instant::now();
                 if !reported_fall && let Some(f) = sim.fallen() {
