@@ -13,40 +13,13 @@
 //! Each scenario runs in a private network namespace (tests/python/bag_peer.py).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use common::{bin_dir, in_netns, python, root};
 use serde_json::{Value, json};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn python() -> PathBuf {
-    let p = std::env::var_os("BIPED_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join(".venv/bin/biped-python"));
-    assert!(
-        p.exists(),
-        "no ROS 2 Python at {}: run scripts/setup-python-env",
-        p.display()
-    );
-    p
-}
-
-fn bin_dir() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_BIN_EXE_biped"))
-        .parent()
-        .unwrap()
-        .to_path_buf();
-    for node in ["gait_planner", "ik_solver", "joint_bridge"] {
-        assert!(
-            dir.join(node).is_file(),
-            "node binary {node} not built: run cargo build --workspace"
-        );
-    }
-    dir
-}
 
 fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("biped-bag-fleet-{}-{name}", std::process::id()));
@@ -57,16 +30,12 @@ fn scratch(name: &str) -> PathBuf {
 
 /// Runs a bag_peer.py scenario in a new network namespace; returns its JSON.
 fn peer(scenario: &str, path: &Path, domain_id: u32) -> Value {
-    let inner = "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$1\" \"$2\" \"$3\" \"$4\"";
-    let out = Command::new("unshare")
-        .args(["-n", "sh", "-c", inner])
+    let out = in_netns("exec \"$@\"", domain_id)
         .arg(python())
         .arg(root().join("tests/python/bag_peer.py"))
         .arg(scenario)
         .arg(bin_dir())
         .arg(path)
-        .env("ROS_DOMAIN_ID", domain_id.to_string())
-        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         .output()
         .expect("unshare runs (root needed for a private network namespace)");
     let stderr = String::from_utf8_lossy(&out.stderr);

@@ -26,15 +26,17 @@
 //! common step (all leg joints share the URDF limit of 6 rad/s, and one units_per_rad).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
 #[path = "../joint_bridge/tests/support/mod.rs"]
 mod support;
 
 use std::collections::BTreeMap;
 use std::os::unix::process::CommandExt as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+use common::{bin_dir, python, root};
 use joint_bridge::serial::Protocol;
 use serde_json::Value;
 use support::Board;
@@ -49,54 +51,9 @@ const LEG_SPEED_RAD_S: f64 = 6.0;
 /// One unit on the Dynamixel wire: a tick.
 const UNIT: f64 = 1.0;
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn python() -> PathBuf {
-    let p = std::env::var_os("BIPED_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join(".venv/bin/biped-python"));
-    assert!(
-        p.exists(),
-        "no Python reference tools at {}: run scripts/setup-python-env (scripts/test does)",
-        p.display()
-    );
-    p
-}
-
-fn bin_dir() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_BIN_EXE_biped"))
-        .parent()
-        .unwrap()
-        .to_path_buf();
-    for node in ["gait_planner", "ik_solver", "joint_bridge", "sim_bridge"] {
-        assert!(
-            dir.join(node).is_file(),
-            "node binary {node} not built in {}: run cargo build --workspace (scripts/test does)",
-            dir.display()
-        );
-    }
-    dir
-}
-
-/// `sh -c SCRIPT ARGS...` in a new network namespace with only loopback (multicast on).
+/// `sh -c SCRIPT` in this test's private network namespace.
 fn in_netns(script: &str) -> Command {
-    let mut c = Command::new("unshare");
-    c.args([
-        "-n",
-        "sh",
-        "-c",
-        &format!(
-            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || exit 90\n{script}"
-        ),
-        "sh",
-    ])
-    .env("ROS_DOMAIN_ID", DOMAIN_ID.to_string())
-    .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    .env_remove("ROS_LOCALHOST_ONLY")
-    .env_remove(biped_msgs::ros::LAUNCH_PARENT_ENV);
-    c
+    common::in_netns(script, DOMAIN_ID)
 }
 
 /// One joint of the calibration file, as this test reads it.

@@ -4,57 +4,21 @@
 //! ROS_DOMAIN_ID, with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST: nothing leaves the machine.
 //! The Python peer acts and records (tests/python/fleet_peer.py); the assertions are here.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
 
+use common::{bin_dir, in_netns, python, root};
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::{BipedModel, Side};
 use serde_json::Value;
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn python() -> PathBuf {
-    let p = std::env::var_os("BIPED_PYTHON")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| root().join(".venv/bin/biped-python"));
-    assert!(
-        p.exists(),
-        "no ROS 2 Python peer at {}: run scripts/setup-python-env (scripts/test does)",
-        p.display()
-    );
-    p
-}
-
-fn bin_dir() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_BIN_EXE_biped"))
-        .parent()
-        .unwrap()
-        .to_path_buf();
-    for node in ["gait_planner", "ik_solver", "joint_bridge"] {
-        assert!(
-            dir.join(node).is_file(),
-            "node binary {node} not built in {}: run cargo build --workspace (scripts/test does)",
-            dir.display()
-        );
-    }
-    dir
-}
-
 /// Runs a peer scenario in a new network namespace and returns what it recorded.
 fn peer(scenario: &str, domain_id: u32) -> Value {
     let script = root().join("tests/python/fleet_peer.py");
-    let inner = format!(
-        "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$1\" {scenario} \"$2\""
-    );
-    let out = Command::new("unshare")
-        .args(["-n", "sh", "-c", &inner])
+    let out = in_netns("exec \"$@\"", domain_id)
         .arg(python())
         .arg(&script)
+        .arg(scenario)
         .arg(bin_dir())
-        .env("ROS_DOMAIN_ID", domain_id.to_string())
-        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         .env(
             "BIPED_TEST_LOG_DIR",
             std::env::temp_dir().join(format!("biped-launch-{domain_id}-{}", std::process::id())),

@@ -3,25 +3,13 @@
 //! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 67-69), with
 //! discovery restricted to this host by `biped walk` itself.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use common::bin_dir;
 use serde_json::Value;
-
-fn bin_dir() -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_BIN_EXE_biped"))
-        .parent()
-        .unwrap()
-        .to_path_buf();
-    for node in ["gait_planner", "ik_solver", "joint_bridge", "sim_bridge"] {
-        assert!(
-            dir.join(node).is_file(),
-            "node binary {node} not built in {}: run cargo build --workspace (scripts/test does)",
-            dir.display()
-        );
-    }
-    dir
-}
 
 fn out_dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("biped-walk-{name}-{}", std::process::id()));

@@ -1,0 +1,63 @@
+//! What the end-to-end tests of the `biped` command share: where the repository, the
+//! Python reference tools and the built binaries are, and a private network namespace for
+//! every DDS participant (nothing leaves the machine).
+#![allow(dead_code)]
+
+use std::path::PathBuf;
+use std::process::Command;
+
+/// The repository root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The venv's interpreter with rclpy and the reference tools: `BIPED_PYTHON`, else
+/// `.venv/bin/biped-python` (scripts/setup-python-env makes it; scripts/test sets the
+/// variable).
+pub fn python() -> PathBuf {
+    let p = std::env::var_os("BIPED_PYTHON")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join(".venv/bin/biped-python"));
+    assert!(
+        p.exists(),
+        "no Python reference tools at {}: run scripts/setup-python-env (scripts/test does)",
+        p.display()
+    );
+    p
+}
+
+/// The folder of `biped` and the node binaries, checked to hold them all.
+pub fn bin_dir() -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_BIN_EXE_biped"))
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    for node in ["gait_planner", "ik_solver", "joint_bridge", "sim_bridge"] {
+        assert!(
+            dir.join(node).is_file(),
+            "node binary {node} not built in {}: run cargo build --workspace (scripts/test does)",
+            dir.display()
+        );
+    }
+    dir
+}
+
+/// `sh -c SCRIPT sh ARGS...` (add ARGS with `.arg`) in a new network namespace with only
+/// loopback, multicast on, on `domain_id`, discovery restricted to this host.
+pub fn in_netns(script: &str, domain_id: u32) -> Command {
+    let mut c = Command::new("unshare");
+    c.args([
+        "-n",
+        "sh",
+        "-c",
+        &format!(
+            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || exit 90\n{script}"
+        ),
+        "sh",
+    ])
+    .env("ROS_DOMAIN_ID", domain_id.to_string())
+    .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    .env_remove("ROS_LOCALHOST_ONLY")
+    .env_remove(biped_msgs::ros::LAUNCH_PARENT_ENV);
+    c
+}
