@@ -255,6 +255,9 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     let executor = smol::LocalExecutor::new();
     executor.spawn(spinner.spin()).detach();
 
+    // Ctrl-C or SIGTERM ends the walk as a failure, but cleanly: the fleet is stopped and a
+    // bag being recorded is closed, complete.
+    let interrupted = ros::shutdown_flag()?;
     let wall0 = Instant::now();
     let mut first_clock_wall: Option<Instant> = None;
     let mut rec = Recording::default();
@@ -266,6 +269,9 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         //    reaches its start time (step 2): by then the planner is ticking.
         let deadline = Instant::now() + Duration::from_secs(60);
         while walk_pub.get_subscription_count(&node) == 0 {
+            if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
+                anyhow::bail!("interrupted before the walk started");
+            }
             if let Some(why) = fleet.failed() {
                 anyhow::bail!("{why}");
             }
@@ -314,6 +320,12 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 first_clock_wall.get_or_insert(last_clock_wall);
             }
             rec.drain(&phase, &commands, &states, &base, &cop, &support, &fall);
+            if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
+                anyhow::bail!(
+                    "interrupted at t = {:.2} s of simulated time",
+                    rec.clock_ns as f64 * 1e-9
+                );
+            }
             if rec.clock_ns < command.start_time.to_nanos()
                 && last_resend.elapsed() >= Duration::from_millis(20)
             {
