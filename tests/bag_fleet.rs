@@ -265,7 +265,13 @@ fn replay_into_the_fleet(storage: &str, domain_id: u32) {
     let worst = worst_timing_error_ms(&rec, &arr);
     assert!(
         worst < 5.0,
-        "a replayed message was {worst:.2} ms off its recorded time"
+        "a replayed message was {worst:.2} ms off its recorded time (the replay's own account: {})",
+        r["stdout"]
+            .as_str()
+            .unwrap()
+            .lines()
+            .next()
+            .unwrap_or_default()
     );
 
     // The fleet acted: the planner walked on /cmd_vel, the bridge followed the knee.

@@ -379,7 +379,10 @@ fn read_mcap(path: &Path) -> Result<StorageContents, BagError> {
         .ok_or_else(|| storage_err(path, "MCAP file has no summary section (not closed by its writer)"))?;
     let mut out = StorageContents::default();
     let mut channel_topic = BTreeMap::new();
-    for (id, channel) in &summary.channels {
+    // In channel id order (the summary's map has none): the order they were written.
+    let mut channels: Vec<_> = summary.channels.iter().collect();
+    channels.sort_by_key(|(id, _)| **id);
+    for (id, channel) in channels {
         let Some(schema) = channel.schema.as_ref() else {
             return Err(BagError::MissingSchema {
                 file: path.to_path_buf(),
