@@ -29,6 +29,8 @@
 //! p99 and max; the table has a column for the CPU other processes used either way).
 //! A benchmark, not a test: it is not part of `cargo test` or `scripts/test`.
 
+mod common;
+
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -41,6 +43,7 @@ use anyhow::{Context as _, anyhow, bail};
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{AnkleTargets, Header, JointState, Point, Time};
 use biped_msgs::ros::{self, RosArgs};
+use common::{bin_dir, check_only_loopback, lock_version, proc_cpu_time, warn_if_stale};
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::{BipedModel, Side};
 use ros2_client::qos::History;
@@ -48,7 +51,6 @@ use ros2_client::{NodeName, NodeOptions, Publisher};
 use smol::future::FutureExt as _;
 
 /// Set in the re-executed process, inside the private network namespace.
-const IN_NETNS: &str = "BIPED_BENCH_IN_NETNS";
 /// Our own DDS domain (the namespace is private anyway).
 const DOMAIN_ID: &str = "97";
 /// The heading of this benchmark's section in BENCHMARKS.md.
@@ -134,8 +136,8 @@ impl Opts {
 
 fn run() -> anyhow::Result<()> {
     let opts = Opts::parse(std::env::args().skip(1))?;
-    if std::env::var_os(IN_NETNS).is_none() {
-        return reexec_in_netns();
+    if !common::in_netns() {
+        return common::reexec_in_netns(DOMAIN_ID);
     }
     check_only_loopback()?;
 
@@ -168,7 +170,12 @@ fn run() -> anyhow::Result<()> {
                         exe.display()
                     );
                 }
-                warn_if_stale(&exe, &root);
+                warn_if_stale(
+                    &exe,
+                    &root,
+                    &["ik_solver/src", "msgs/src"],
+                    "cargo build --release --workspace",
+                );
                 spawn_relay(Command::new(&exe).arg("--ros-args"), relay)?
             }
             Relay::Rclpy => {
@@ -225,88 +232,6 @@ fn run() -> anyhow::Result<()> {
         println!("--- section for BENCHMARKS.md (written with -- --write) ---\n\n{section}");
     }
     Ok(())
-}
-
-/// Runs this executable again inside a new network namespace with only loopback (multicast
-/// on, for DDS discovery).
-fn reexec_in_netns() -> anyhow::Result<()> {
-    let exe = std::env::current_exe().context("own executable")?;
-    let status = Command::new("unshare")
-        .args([
-            "-n",
-            "sh",
-            "-c",
-            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"",
-        ])
-        .arg(&exe)
-        .args(std::env::args_os().skip(1))
-        .env(IN_NETNS, "1")
-        .env("ROS_DOMAIN_ID", DOMAIN_ID)
-        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        .status()
-        .context("unshare -n (root is needed for a private network namespace)")?;
-    if !status.success() {
-        bail!("the benchmark in its network namespace failed ({status})");
-    }
-    Ok(())
-}
-
-/// Refuses to run DDS where it could reach a real network: only `lo` may exist.
-fn check_only_loopback() -> anyhow::Result<()> {
-    let dev = std::fs::read_to_string("/proc/net/dev").context("/proc/net/dev")?;
-    let others: Vec<&str> = dev
-        .lines()
-        .skip(2)
-        .filter_map(|l| l.split(':').next().map(str::trim))
-        .filter(|n| *n != "lo")
-        .collect();
-    if !others.is_empty() {
-        bail!("network interfaces other than loopback are visible ({others:?}): not running");
-    }
-    Ok(())
-}
-
-/// The folder of the workspace's binaries: this executable's, without `deps/`.
-fn bin_dir() -> anyhow::Result<PathBuf> {
-    let exe = std::env::current_exe()?;
-    let mut dir = exe
-        .parent()
-        .ok_or_else(|| anyhow!("executable without a folder"))?
-        .to_path_buf();
-    if dir.ends_with("deps") {
-        dir.pop();
-    }
-    Ok(dir)
-}
-
-fn newest_mtime(dir: &Path) -> Option<SystemTime> {
-    let mut newest = None;
-    for e in std::fs::read_dir(dir).ok()?.flatten() {
-        let p = e.path();
-        let t = if p.is_dir() {
-            newest_mtime(&p)
-        } else {
-            e.metadata().ok().and_then(|m| m.modified().ok())
-        };
-        newest = newest.max(t);
-    }
-    newest
-}
-
-fn warn_if_stale(exe: &Path, root: &Path) {
-    let built = std::fs::metadata(exe).and_then(|m| m.modified()).ok();
-    let sources = ["ik_solver/src", "msgs/src"]
-        .iter()
-        .filter_map(|d| newest_mtime(&root.join(d)))
-        .max();
-    if let (Some(b), Some(s)) = (built, sources)
-        && s > b
-    {
-        eprintln!(
-            "warning: {} is older than its sources: rebuild with `cargo build --release --workspace`",
-            exe.display()
-        );
-    }
 }
 
 /// The ankle targets of every tick of a planned 6-step walk, as the gait_planner node sends
@@ -428,15 +353,6 @@ impl Drop for RelayProcess {
         }
         let _ = std::fs::remove_file(&self.stderr_path);
     }
-}
-
-/// CPU time (user + system, all threads) a process has used, from `/proc/PID/stat`.
-fn proc_cpu_time(pid: &str) -> Option<Duration> {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
-    let rest: Vec<&str> = stat.rsplit_once(") ")?.1.split_whitespace().collect();
-    let ticks: u64 = rest.get(11)?.parse::<u64>().ok()? + rest.get(12)?.parse::<u64>().ok()?;
-    // USER_HZ is 100 on Linux.
-    Some(Duration::from_millis(ticks * 10))
 }
 
 /// CPU time all processes of the machine have used (user, nice, system; all CPUs). Interrupt
@@ -915,15 +831,6 @@ fn table(results: &[RunResult]) -> String {
         );
     }
     s
-}
-
-fn lock_version(root: &Path, krate: &str) -> String {
-    let lock = std::fs::read_to_string(root.join("Cargo.lock")).unwrap_or_default();
-    let needle = format!("name = \"{krate}\"\nversion = \"");
-    lock.find(&needle)
-        .and_then(|i| lock[i + needle.len()..].split('"').next())
-        .unwrap_or("?")
-        .to_owned()
 }
 
 fn machine() -> String {

@@ -1,0 +1,120 @@
+//! What the DDS bench binaries share: running inside a private network namespace (nothing
+//! leaves the machine), finding the workspace's binaries, and reading /proc and Cargo.lock.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::{Duration, SystemTime};
+
+use anyhow::{Context as _, anyhow, bail};
+
+/// Set in the re-executed bench: it runs inside its network namespace.
+pub const IN_NETNS: &str = "BIPED_BENCH_IN_NETNS";
+
+/// Whether this process is the one inside the namespace.
+pub fn in_netns() -> bool {
+    std::env::var_os(IN_NETNS).is_some()
+}
+
+/// Runs this executable again, with the same arguments, in a new network namespace with only
+/// loopback (multicast on), on `domain_id`, discovery restricted to this host.
+pub fn reexec_in_netns(domain_id: &str) -> anyhow::Result<()> {
+    let exe = std::env::current_exe().context("own executable")?;
+    let status = Command::new("unshare")
+        .args([
+            "-n",
+            "sh",
+            "-c",
+            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo && exec \"$0\" \"$@\"",
+        ])
+        .arg(&exe)
+        .args(std::env::args_os().skip(1))
+        .env(IN_NETNS, "1")
+        .env("ROS_DOMAIN_ID", domain_id)
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .env_remove("ROS_LOCALHOST_ONLY")
+        .env_remove(biped_msgs::ros::LAUNCH_PARENT_ENV)
+        .status()
+        .context("unshare -n (root is needed for a private network namespace)")?;
+    if !status.success() {
+        bail!("the benchmark in its network namespace failed ({status})");
+    }
+    Ok(())
+}
+
+/// Refuses to run DDS where it could reach a real network: only `lo` may exist.
+pub fn check_only_loopback() -> anyhow::Result<()> {
+    let dev = std::fs::read_to_string("/proc/net/dev").context("/proc/net/dev")?;
+    let others: Vec<&str> = dev
+        .lines()
+        .skip(2)
+        .filter_map(|l| l.split(':').next().map(str::trim))
+        .filter(|n| *n != "lo")
+        .collect();
+    if !others.is_empty() {
+        bail!("network interfaces other than loopback are visible ({others:?}): not running");
+    }
+    Ok(())
+}
+
+/// The folder of the workspace's binaries: this executable's, without `deps/`.
+pub fn bin_dir() -> anyhow::Result<PathBuf> {
+    let exe = std::env::current_exe()?;
+    let mut dir = exe
+        .parent()
+        .ok_or_else(|| anyhow!("executable without a folder"))?
+        .to_path_buf();
+    if dir.ends_with("deps") {
+        dir.pop();
+    }
+    Ok(dir)
+}
+
+pub fn newest_mtime(dir: &Path) -> Option<SystemTime> {
+    let mut newest = None;
+    for e in std::fs::read_dir(dir).ok()?.flatten() {
+        let p = e.path();
+        let t = if p.is_dir() {
+            newest_mtime(&p)
+        } else {
+            e.metadata().ok().and_then(|m| m.modified().ok())
+        };
+        newest = newest.max(t);
+    }
+    newest
+}
+
+/// CPU time (user + system, all threads) a process has used, from `/proc/PID/stat`.
+pub fn proc_cpu_time(pid: &str) -> Option<Duration> {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    let rest: Vec<&str> = stat.rsplit_once(") ")?.1.split_whitespace().collect();
+    let ticks: u64 = rest.get(11)?.parse::<u64>().ok()? + rest.get(12)?.parse::<u64>().ok()?;
+    // USER_HZ is 100 on Linux.
+    Some(Duration::from_millis(ticks * 10))
+}
+
+pub fn lock_version(root: &Path, krate: &str) -> String {
+    let lock = std::fs::read_to_string(root.join("Cargo.lock")).unwrap_or_default();
+    let needle = format!("name = \"{krate}\"\nversion = \"");
+    lock.find(&needle)
+        .and_then(|i| lock[i + needle.len()..].split('"').next())
+        .unwrap_or("?")
+        .to_owned()
+}
+
+/// Warns when `exe` is older than the newest file in `sources` (folders under `root`).
+pub fn warn_if_stale(exe: &Path, root: &Path, sources: &[&str], rebuild: &str) {
+    let built = std::fs::metadata(exe).and_then(|m| m.modified()).ok();
+    let newest = sources
+        .iter()
+        .filter_map(|d| newest_mtime(&root.join(d)))
+        .max();
+    if let (Some(b), Some(s)) = (built, newest)
+        && s > b
+    {
+        eprintln!(
+            "warning: {} is older than its sources: rebuild with `{rebuild}`",
+            exe.display()
+        );
+    }
+}
