@@ -406,19 +406,14 @@ impl BagWriter {
     /// Closes the storage (with its copy of the metadata) and writes `metadata.yaml`.
     pub fn finish(self) -> Result<BagInfo, BagError> {
         let info = self.info();
-        let meta_file = self.dir.join("metadata.yaml");
-        let yaml = |v: &dyn erased::Yaml| {
-            v.to_yaml().map_err(|reason| BagError::Metadata {
-                file: meta_file.clone(),
-                reason,
-            })
-        };
-        let body = yaml(&info)?;
-        self.storage.finish(body.trim_end())?;
-        let text = yaml(&MetadataFile {
-            rosbag2_bagfile_information: info.clone(),
-        })?;
         let path = self.dir.join("metadata.yaml");
+        self.storage.finish(to_yaml(&info, &path)?.trim_end())?;
+        let text = to_yaml(
+            &MetadataFile {
+                rosbag2_bagfile_information: info.clone(),
+            },
+            &path,
+        )?;
         let tmp = self.dir.join("metadata.yaml.tmp");
         std::fs::write(&tmp, text).map_err(io_err(&tmp))?;
         std::fs::rename(&tmp, &path).map_err(io_err(&path))?;
@@ -426,16 +421,12 @@ impl BagWriter {
     }
 }
 
-mod erased {
-    /// Serializes to YAML (one function for the two metadata shapes).
-    pub trait Yaml {
-        fn to_yaml(&self) -> Result<String, String>;
-    }
-    impl<T: serde::Serialize> Yaml for T {
-        fn to_yaml(&self) -> Result<String, String> {
-            serde_norway::to_string(self).map_err(|e| e.to_string())
-        }
-    }
+/// YAML text of the metadata (`file` names it in the error).
+fn to_yaml<T: serde::Serialize>(value: &T, file: &Path) -> Result<String, BagError> {
+    serde_norway::to_string(value).map_err(|e| BagError::Metadata {
+        file: file.to_path_buf(),
+        reason: e.to_string(),
+    })
 }
 
 #[cfg(test)]
