@@ -47,7 +47,11 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     let v = peer("walk", 61);
     assert_eq!(v["nodes_seen"], true, "nodes: {}", v["node_names"]);
     assert_eq!(v["matched"], true);
-    assert_eq!(v["flowing"], true, "joint commands and states never flowed");
+    assert_eq!(
+        v["flowing"], true,
+        "joint commands and states never flowed: {}",
+        v["flow_diag"]
+    );
 
     // The joint commands of the walk, from the first crouch tick to the end of the walk, by
     // the stamps /gait/phase and /joint_commands share.
@@ -178,7 +182,11 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
 fn killing_ik_solver_mid_walk_makes_the_bridge_hold_the_pose() {
     let v = peer("watchdog", 62);
     assert_eq!(v["nodes_seen"], true);
-    assert_eq!(v["flowing"], true, "joint commands and states never flowed");
+    assert_eq!(
+        v["flowing"], true,
+        "joint commands and states never flowed: {}",
+        v["flow_diag"]
+    );
     assert_eq!(v["moving"], true, "the walk never moved the joints");
     let kill_t = v["kill_t"].as_f64().unwrap();
     let states = v["states"].as_array().unwrap();
