@@ -55,7 +55,9 @@ use std::sync::{Arc, mpsc};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context as _, anyhow, bail};
-use common::{bin_dir, check_only_loopback, lock_version, proc_cpu_time, warn_if_stale};
+use common::{
+    bin_dir, check_only_loopback, lock_version, machine, machine_cpu, proc_cpu_time, warn_if_stale,
+};
 use serde_json::{Value, json};
 
 /// Set in the re-executed process, inside the private network namespace.
@@ -376,28 +378,6 @@ impl Drop for Proc {
     }
 }
 
-/// Time the machine's CPUs have been idle (idle + iowait, all CPUs), and how many CPUs it
-/// has. The busy fields of `/proc/stat` (user, system...) are sampled at the scheduler tick,
-/// which overstates work that wakes up with the timer (a 1 kHz stream showed 40 % of a core
-/// more than all processes together used); the idle time is measured (tickless kernels), so
-/// busy = elapsed × CPUs − idle.
-fn machine_idle() -> Option<(Duration, u32)> {
-    let stat = std::fs::read_to_string("/proc/stat").ok()?;
-    let mut lines = stat.lines();
-    let cpu: Vec<u64> = lines
-        .next()?
-        .split_whitespace()
-        .skip(1)
-        .filter_map(|x| x.parse().ok())
-        .collect();
-    let cpus = lines
-        .filter(|l| l.starts_with("cpu") && l.as_bytes().get(3).is_some_and(u8::is_ascii_digit))
-        .count();
-    let ticks = cpu.get(3)? + cpu.get(4)?;
-    // USER_HZ is 100 on Linux.
-    Some((Duration::from_millis(ticks * 10), u32::try_from(cpus).ok()?))
-}
-
 fn wall_ns() -> i64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
@@ -427,7 +407,7 @@ fn sampler(
         while !stop.load(Ordering::SeqCst) {
             let t = wall_ns();
             if let (Some(idle), Some(replayer), Some(receiver), Some(own)) = (
-                machine_idle(),
+                machine_cpu().map(|m| (m.idle, m.cpus)),
                 proc_cpu_time(&rp),
                 proc_cpu_time(&rc),
                 proc_cpu_time("self"),
@@ -681,19 +661,4 @@ fn table(results: &[RunResult], deserialize: bool) -> String {
         );
     }
     s
-}
-
-fn machine() -> String {
-    let cpus = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(0);
-    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
-    let model = cpuinfo
-        .lines()
-        .find(|l| l.starts_with("model name"))
-        .and_then(|l| l.split_once(':'))
-        .map(|(_, m)| m.trim().to_owned())
-        .unwrap_or_else(|| "?".into());
-    let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease").unwrap_or_default();
-    format!("{model}, {cpus} CPUs (`nproc`), Linux {}", kernel.trim())
 }

@@ -43,7 +43,9 @@ use anyhow::{Context as _, anyhow, bail};
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{AnkleTargets, Header, JointState, Point, Time};
 use biped_msgs::ros::{self, RosArgs};
-use common::{bin_dir, check_only_loopback, lock_version, proc_cpu_time, warn_if_stale};
+use common::{
+    bin_dir, check_only_loopback, lock_version, machine, machine_cpu, proc_cpu_time, warn_if_stale,
+};
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::{BipedModel, Side};
 use ros2_client::qos::History;
@@ -355,21 +357,6 @@ impl Drop for RelayProcess {
     }
 }
 
-/// CPU time all processes of the machine have used (user, nice, system; all CPUs). Interrupt
-/// and softirq time is left out: it is mostly this benchmark's own loopback traffic.
-fn machine_busy() -> Option<Duration> {
-    let stat = std::fs::read_to_string("/proc/stat").ok()?;
-    let cpu: Vec<u64> = stat
-        .lines()
-        .next()?
-        .split_whitespace()
-        .skip(1)
-        .filter_map(|x| x.parse().ok())
-        .collect();
-    let ticks = cpu.first()? + cpu.get(1)? + cpu.get(2)?;
-    Some(Duration::from_millis(ticks * 10))
-}
-
 /// Waits until the machine has been nearly idle (under 10 % of one core busy) for 3 s, at
 /// most `max`.
 fn wait_idle(max: Duration) {
@@ -377,11 +364,13 @@ fn wait_idle(max: Duration) {
     let mut quiet_since: Option<Instant> = None;
     let mut last_note = Instant::now();
     while start.elapsed() < max {
-        let (Some(b0), t0) = (machine_busy(), Instant::now()) else {
+        let (Some(b0), t0) = (machine_cpu().map(|m| m.busy), Instant::now()) else {
             return;
         };
         std::thread::sleep(Duration::from_millis(500));
-        let Some(b1) = machine_busy() else { return };
+        let Some(b1) = machine_cpu().map(|m| m.busy) else {
+            return;
+        };
         let busy = (b1 - b0).as_secs_f64() / t0.elapsed().as_secs_f64();
         if busy < 0.10 {
             let since = *quiet_since.get_or_insert(t0);
@@ -462,7 +451,7 @@ impl OthersSampler {
             let sample = || {
                 Some((
                     Instant::now(),
-                    machine_busy()?,
+                    machine_cpu().map(|m| m.busy)?,
                     proc_cpu_time("self")?,
                     proc_cpu_time(&pid)?,
                 ))
@@ -718,7 +707,7 @@ fn measure(
     let sampler = OthersSampler::start(child.process.id());
     let cpu0 = child.cpu_time();
     let own0 = proc_cpu_time("self");
-    let busy0 = machine_busy();
+    let busy0 = machine_cpu().map(|m| m.busy);
     let t0 = Instant::now();
     let (stamps, send_time) = send_at_rate(publisher, targets, k, rate_hz, n, clock)?;
     // Every command back, or 2 s after the last send.
@@ -751,7 +740,7 @@ fn measure(
     // Everything the machine ran minus this process and the relay.
     let others = match (
         busy0,
-        machine_busy(),
+        machine_cpu().map(|m| m.busy),
         own0,
         proc_cpu_time("self"),
         cpu0,
@@ -831,31 +820,6 @@ fn table(results: &[RunResult]) -> String {
         );
     }
     s
-}
-
-fn machine() -> String {
-    let cpus = std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(0);
-    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
-    let model = cpuinfo
-        .lines()
-        .find(|l| l.starts_with("model name"))
-        .and_then(|l| l.split_once(':'))
-        .map(|(_, m)| m.trim().to_owned())
-        .unwrap_or_else(|| "?".into());
-    let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease").unwrap_or_default();
-    let mem_gib = std::fs::read_to_string("/proc/meminfo")
-        .unwrap_or_default()
-        .lines()
-        .find(|l| l.starts_with("MemTotal:"))
-        .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
-        .map(|kb| format!("{:.0} GiB", kb / 1024.0 / 1024.0))
-        .unwrap_or_else(|| "?".into());
-    format!(
-        "{model}, {cpus} CPUs (`nproc`), {mem_gib}, Linux {}",
-        kernel.trim()
-    )
 }
 
 fn today() -> String {

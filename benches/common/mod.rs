@@ -93,6 +93,67 @@ pub fn proc_cpu_time(pid: &str) -> Option<Duration> {
     Some(Duration::from_millis(ticks * 10))
 }
 
+/// Machine-wide CPU times since boot, from the first lines of `/proc/stat`.
+pub struct MachineCpu {
+    /// user + nice + system, over all CPUs. Interrupt and softirq time is left out: in our
+    /// DDS benches it is mostly the bench's own loopback traffic.
+    pub busy: Duration,
+    /// idle + iowait, over all CPUs. The busy fields are sampled at the scheduler tick, which
+    /// overstates work that wakes up with the timer (a 1 kHz stream showed 40 % of a core
+    /// more than all processes together used); idle time is measured (tickless kernels), so
+    /// for such loads busy = elapsed × CPUs − idle is the better figure.
+    pub idle: Duration,
+    /// The number of CPUs listed.
+    pub cpus: u32,
+}
+
+pub fn machine_cpu() -> Option<MachineCpu> {
+    let stat = std::fs::read_to_string("/proc/stat").ok()?;
+    let mut lines = stat.lines();
+    let cpu: Vec<u64> = lines
+        .next()?
+        .split_whitespace()
+        .skip(1)
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    let cpus = lines
+        .filter(|l| l.starts_with("cpu") && l.as_bytes().get(3).is_some_and(u8::is_ascii_digit))
+        .count();
+    // USER_HZ is 100 on Linux.
+    let ticks = |t: u64| Duration::from_millis(t * 10);
+    Some(MachineCpu {
+        busy: ticks(cpu.first()? + cpu.get(1)? + cpu.get(2)?),
+        idle: ticks(cpu.get(3)? + cpu.get(4)?),
+        cpus: u32::try_from(cpus).ok()?,
+    })
+}
+
+/// The machine for a benchmark table: CPU model, CPUs, memory, kernel.
+pub fn machine() -> String {
+    let cpus = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(0);
+    let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let model = cpuinfo
+        .lines()
+        .find(|l| l.starts_with("model name"))
+        .and_then(|l| l.split_once(':'))
+        .map(|(_, m)| m.trim().to_owned())
+        .unwrap_or_else(|| "?".into());
+    let kernel = std::fs::read_to_string("/proc/sys/kernel/osrelease").unwrap_or_default();
+    let mem_gib = std::fs::read_to_string("/proc/meminfo")
+        .unwrap_or_default()
+        .lines()
+        .find(|l| l.starts_with("MemTotal:"))
+        .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+        .map(|kb| format!("{:.0} GiB", kb / 1024.0 / 1024.0))
+        .unwrap_or_else(|| "?".into());
+    format!(
+        "{model}, {cpus} CPUs (`nproc`), {mem_gib}, Linux {}",
+        kernel.trim()
+    )
+}
+
 pub fn lock_version(root: &Path, krate: &str) -> String {
     let lock = std::fs::read_to_string(root.join("Cargo.lock")).unwrap_or_default();
     let needle = format!("name = \"{krate}\"\nversion = \"");
