@@ -10,6 +10,7 @@
 //!
 //! `cargo build --release --workspace && cargo bench --bench walk_rtf` (the fleet runs in a
 //! private network namespace: root, `unshare -n`). Prints a Markdown table.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::PathBuf;
 use std::process::{Command, ExitCode};

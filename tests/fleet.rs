@@ -3,6 +3,7 @@
 //! peer and the nodes in a private network namespace with only loopback, on its own
 //! ROS_DOMAIN_ID, with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST: nothing leaves the machine.
 //! The Python peer acts and records (tests/python/fleet_peer.py); the assertions are here.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
 

@@ -1,5 +1,6 @@
 //! `biped plan` end to end: the CSV contract (header, units, every number agreeing with
 //! forward kinematics of the URDF), the golden trajectory, and clear errors on bad input.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

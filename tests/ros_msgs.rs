@@ -23,6 +23,7 @@
 //!   stops at the last field, as RustDDS sends it (RTPS pads outside the payload).
 //!
 //! The venv is required: without it the Python-backed tests fail and say how to make it.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;

@@ -2,6 +2,7 @@
 //! backend) and sim_bridge (MuJoCo) over DDS, in lockstep on simulated time. Each run is in a
 //! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 67-69), with
 //! discovery restricted to this host by `biped walk` itself.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
 

@@ -1,4 +1,5 @@
 //! Prints a phase-by-phase summary of a default walk: `cargo run -p gait_planner --example summary -- [STEPS]`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 fn main() {
     let steps = std::env::args()
         .nth(1)

@@ -1,4 +1,5 @@
 //! Shared helpers of the gait_planner tests.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![allow(dead_code)]
 
 use gait_planner::{GaitParams, GaitPlanner, GaitSample, PhaseKind, WalkRequest};

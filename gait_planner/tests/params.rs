@@ -1,4 +1,5 @@
 //! The parameter file: ROS 2 layout, defaults, bounds, unknown keys, derived values.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
 use common::*;

@@ -1,5 +1,6 @@
 //! The phase machine: sequences for a number of steps, stop requests in every phase, new
 //! requests during a walk.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
 use common::*;

@@ -2,6 +2,7 @@
 //! into a joint vector, and forward kinematics of every link followed by the whole-body CoM.
 //!
 //! cargo bench -p ik_solver --bench kinematics -- --warm-up-time 1 --measurement-time 3
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::hint::black_box;
 

@@ -1,4 +1,5 @@
 //! Shared helpers of the ik_solver tests.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![allow(dead_code)]
 
 use ik_solver::{BipedModel, Side};

@@ -3,6 +3,7 @@
 //! scripts/setup-python-env builds), plus one centre of mass worked out by hand.
 //!
 //! The venv is required: without it these tests fail and say how to make it.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
 use common::TEST_BIPED6;

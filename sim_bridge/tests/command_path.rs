@@ -1,6 +1,7 @@
 //! The fleet's command path in physics: joint vectors through the joint bridge, compensated
 //! for servo sag by the bridge from the commanded pose alone (no plan, no support phase),
 //! onto the simulated robot.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use gait_planner::{GaitParams, GaitPlanner, Support, WalkRequest};
 use ik_solver::{BipedModel, DEFAULT_URDF, Side, Stance};

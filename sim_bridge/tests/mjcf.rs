@@ -1,5 +1,6 @@
 //! An MJCF-loaded robot: a scene written for these tests (sim_bridge/tests/data), not
 //! generated from the URDF, tied to config/biped.urdf by a joint map.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::PathBuf;
 

@@ -1,6 +1,7 @@
 //! Physics tests: the default robot in MuJoCo, driven by the gait planner's plans.
 //!
 //! Every number asserted here comes out of the physics engine; nothing is mocked.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::sync::OnceLock;
 

@@ -1,6 +1,7 @@
 //! What the end-to-end tests of the `biped` command share: where the repository, the
 //! Python reference tools and the built binaries are, and a private network namespace for
 //! every DDS participant (nothing leaves the machine).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![allow(dead_code)]
 
 use std::path::PathBuf;
