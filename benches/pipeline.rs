@@ -42,12 +42,12 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 use anyhow::{Context as _, anyhow, bail};
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{AnkleTargets, Header, JointState, Point, Time};
-use biped_msgs::ros::{self, RosArgs};
 use common::{
     bin_dir, check_only_loopback, lock_version, machine, machine_cpu, proc_cpu_time, warn_if_stale,
 };
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::{BipedModel, Side};
+use node_runtime::RosArgs;
 use ros2_client::qos::History;
 use ros2_client::{NodeName, NodeOptions, Publisher};
 use smol::future::FutureExt as _;
@@ -493,25 +493,25 @@ fn session(
         let what = what.to_owned();
         move |e: &dyn std::fmt::Debug| anyhow!("{what}: {e:?}")
     };
-    let context = ros::context_from_env()?;
+    let context = node_runtime::context_from_env()?;
     let mut node = context
         .new_node(
             NodeName::new("/", "pipeline_bench").map_err(|e| dds("node name")(&e))?,
             NodeOptions::new().enable_rosout(false),
         )
         .map_err(|e| dds("node")(&e))?;
-    let qos = ros::qos::default();
+    let qos = node_runtime::qos::default();
     let none = RosArgs::default();
     let targets_topic = node
         .create_topic(
-            &ros::topic_name(&none, "/", "/gait/ankle_targets")?,
+            &node_runtime::topic_name(&none, "/", "/gait/ankle_targets")?,
             AnkleTargets::message_type_name(),
             &qos,
         )
         .map_err(|e| dds("topic")(&e))?;
     let commands_topic = node
         .create_topic(
-            &ros::topic_name(&none, "/", "/joint_commands")?,
+            &node_runtime::topic_name(&none, "/", "/joint_commands")?,
             JointState::message_type_name(),
             &qos,
         )

@@ -18,7 +18,8 @@ use std::time::Instant;
 
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::{BipedModel, DEFAULT_URDF};
-use sim_bridge::{Interpolation, PlayOptions, Sim, SimConfig, run_plan};
+use sim_bridge::{Sim, SimConfig};
+use walk_eval::{Interpolation, PlayOptions, run_plan};
 
 const STEPS: u32 = 10;
 const RUNS: usize = 3;

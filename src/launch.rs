@@ -221,7 +221,7 @@ impl Fleet {
             .args(self.ros_args(name)?)
             .envs(self.options.env.iter().map(|(k, v)| (k, v)))
             .env(
-                biped_msgs::ros::LAUNCH_PARENT_ENV,
+                node_runtime::LAUNCH_PARENT_ENV,
                 std::process::id().to_string(),
             )
             .stdin(Stdio::null())

@@ -233,8 +233,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             let storage = bag::storage::StorageKind::from_id(&storage)
                 .with_context(|| format!("--storage {storage}"))?;
-            let stop = biped_msgs::ros::shutdown_flag()?;
-            let context = biped_msgs::ros::context_from_env()?;
+            let stop = node_runtime::shutdown_flag()?;
+            let context = node_runtime::context_from_env()?;
             let opts = bag::record::RecordOptions {
                 dir: dir.clone(),
                 topics,
@@ -281,8 +281,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     anyhow::bail!("{name} {v}: must be within [0, 3600] s");
                 }
             }
-            let stop = biped_msgs::ros::shutdown_flag()?;
-            let context = biped_msgs::ros::context_from_env()?;
+            let stop = node_runtime::shutdown_flag()?;
+            let context = node_runtime::context_from_env()?;
             let opts = bag::replay::ReplayOptions {
                 dir: dir.clone(),
                 rate,

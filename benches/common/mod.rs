@@ -33,7 +33,7 @@ pub fn reexec_in_netns(domain_id: &str) -> anyhow::Result<()> {
         .env("ROS_DOMAIN_ID", domain_id)
         .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         .env_remove("ROS_LOCALHOST_ONLY")
-        .env_remove(biped_msgs::ros::LAUNCH_PARENT_ENV)
+        .env_remove(node_runtime::LAUNCH_PARENT_ENV)
         .status()
         .context("unshare -n (root is needed for a private network namespace)")?;
     if !status.success() {

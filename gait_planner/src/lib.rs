@@ -19,7 +19,6 @@ mod error;
 pub mod params;
 mod phase;
 mod planner;
-pub mod support;
 pub mod trajectory;
 
 pub use error::GaitError;

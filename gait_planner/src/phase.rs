@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use ik_solver::Side;
+use ik_solver::{Side, Stance};
 use serde::Serialize;
 
 /// A phase of the walk, as written in the plan CSV and on `/gait/phase`.
@@ -98,6 +98,14 @@ impl Support {
         match side {
             Side::Left => Support::Left,
             Side::Right => Support::Right,
+        }
+    }
+    /// The same support as ik_solver's statics name it.
+    pub fn stance(self) -> Stance {
+        match self {
+            Support::Double => Stance::Double,
+            Support::Left => Stance::Single(Side::Left),
+            Support::Right => Stance::Single(Side::Right),
         }
     }
     /// "double", "left" or "right".

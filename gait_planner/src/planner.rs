@@ -5,14 +5,14 @@
 //! World frame: on the floor at the midpoint between the feet of the initial pose, x forward,
 //! y left, z up. The pelvis is kept level and facing +x.
 
-use ik_solver::{AnkleTarget, BipedModel, IkIssue, Side};
+use ik_solver::{AnkleTarget, BipedModel, IkIssue, Side, StaticPose};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::error::GaitError;
 use crate::params::{GaitConfig, GaitParams};
 use crate::phase::{PhaseKind, Support, WalkRequest};
-use crate::support::{Xy, convex_hull, signed_margin};
 use crate::trajectory::{min_jerk, swing_advance, swing_height};
+use ik_solver::support::{Xy, convex_hull, signed_margin};
 
 /// Times closer than this are the same instant (s); far below any control period.
 const TIME_EPSILON_S: f64 = 1e-9;
@@ -46,6 +46,19 @@ pub struct GaitSample {
     pub margin_m: f64,
     /// What the IK had to clamp (empty for a valid plan).
     pub issues: Vec<IkIssue>,
+}
+
+impl GaitSample {
+    /// The planned pose as ik_solver's statics (and the simulator's sag compensation) take
+    /// it: base, joints, CoM and the soles that carry the robot.
+    pub fn static_pose(&self) -> StaticPose<'_> {
+        StaticPose {
+            base_world: &self.base_world,
+            joints_rad: &self.joints_rad,
+            com_world_m: self.com_world_m,
+            stance: self.support.stance(),
+        }
+    }
 }
 
 /// How the pelvis moves within a phase.

@@ -15,12 +15,13 @@ mod ik;
 mod legs;
 mod model;
 mod statics;
+pub mod support;
 
 pub use error::{IkError, ModelError};
 pub use ik::{AnkleTarget, BipedModel, IkIssue, LegSolution};
 pub use legs::{Axis, JointRole, Leg, LegJoint, LegJointNames, LegRoleMap, Side, SoleRect};
 pub use model::{CollisionBox, Inertial, Joint, JointKind, JointLimits, Link, RobotModel};
-pub use statics::{DOUBLE_SUPPORT_TOLERANCE_M, FootLoad, GRAVITY_M_S2, Stance};
+pub use statics::{DOUBLE_SUPPORT_TOLERANCE_M, FootLoad, GRAVITY_M_S2, Stance, StaticPose};
 
 /// The URDF of the project's default robot, built in so every command has a robot to use.
 pub const DEFAULT_URDF: &str = include_str!("../../config/biped.urdf");

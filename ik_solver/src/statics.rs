@@ -33,6 +33,20 @@ pub enum Stance {
     Double,
 }
 
+/// A whole-body pose held still: what the statics need of a planned (or measured) pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StaticPose<'a> {
+    /// Pose of the base (root) link in the world.
+    pub base_world: &'a Isometry3<f64>,
+    /// All joint positions (rad; m for a prismatic joint), in
+    /// [`crate::RobotModel::dof_names`] order.
+    pub joints_rad: &'a [f64],
+    /// Whole-body centre of mass in the world (m): the centre of pressure goes under it.
+    pub com_world_m: Point3<f64>,
+    /// Which soles carry the robot.
+    pub stance: Stance,
+}
+
 /// A vertical floor reaction on one sole.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FootLoad {

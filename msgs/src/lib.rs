@@ -5,15 +5,13 @@
 //!   nodes use, fields in `.msg` order so their CDR encoding is the ROS one. Each type names
 //!   its ROS type and fields through [`RosMessage`]; a test checks them field by field against
 //!   the types rosidl generates from the `.msg` files.
-//! - [`ros`]: what every node shares: `--ros-args` parsing, the DDS context (honouring
-//!   `ROS_DOMAIN_ID` and `ROS_AUTOMATIC_DISCOVERY_RANGE`), parameter files, QoS profiles.
 //! - [`type_description`]: what rosbag2 stores about a type: its RIHS01 hash and `ros2msg`
 //!   definition, computed from the same field lists.
 //!
-//! Core crates never see these types: nodes convert at the edge.
+//! Core crates never see these types: nodes convert at the edge. What nodes share beyond the
+//! types (`--ros-args`, parameters, the DDS context, logging, ticks) is `node_runtime`'s.
 
 pub mod msg;
-pub mod ros;
 pub mod type_description;
 
 pub use msg::RosMessage;

@@ -2,13 +2,13 @@
 //! ([`ik_solver::BipedModel::static_torques_nm`]) with the floor reactions where the plan
 //! puts the support and the CoM. ALGORITHM.md, "Position servos are springs".
 //!
-//! Pure functions of the URDF mass model and a [`GaitSample`]: no physics engine. The fleet
-//! (the joint bridge) compensates from the commanded joint vector alone with
+//! Pure functions of the URDF mass model and a [`StaticPose`] (a planned pose: base, joints,
+//! CoM and the soles that carry it): no physics engine. The fleet (the joint bridge)
+//! compensates from the commanded joint vector alone with
 //! [`ik_solver::BipedModel::sag_compensation_rad`]; these take the plan's own support and
-//! CoM, for the physics tests and the plan player.
+//! CoM, for the physics tests and the plan player (walk_eval).
 
-use gait_planner::{GaitSample, Support};
-use ik_solver::{BipedModel, FootLoad, GRAVITY_M_S2, IkError, Side, Stance};
+use ik_solver::{BipedModel, FootLoad, GRAVITY_M_S2, IkError, StaticPose};
 use nalgebra::Isometry3;
 
 use crate::error::SimError;
@@ -29,65 +29,65 @@ fn ik_error(e: IkError) -> SimError {
     }
 }
 
-fn stance(sample: &GaitSample) -> Stance {
-    match sample.support {
-        Support::Left => Stance::Single(Side::Left),
-        Support::Right => Stance::Single(Side::Right),
-        Support::Double => Stance::Double,
-    }
-}
-
-fn poses(model: &BipedModel, sample: &GaitSample) -> Result<Vec<Isometry3<f64>>, SimError> {
+fn poses(model: &BipedModel, pose: &StaticPose) -> Result<Vec<Isometry3<f64>>, SimError> {
     model
         .robot()
-        .link_poses(&sample.base_world, &sample.joints_rad)
+        .link_poses(pose.base_world, pose.joints_rad)
         .map_err(ik_error)
 }
 
 /// The floor reactions that hold the planned pose still with the centre of pressure under
 /// the planned CoM, for a robot of weight `weight_n`.
+///
+/// ```
+/// use ik_solver::{BipedModel, DEFAULT_URDF, Side, Stance, StaticPose};
+/// use nalgebra::{Isometry3, Point3};
+/// let model = BipedModel::from_urdf_str(DEFAULT_URDF, None).unwrap();
+/// let (base, joints) = (Isometry3::identity(), vec![0.0; model.robot().dof_count()]);
+/// let poses = model.robot().link_poses(&base, &joints).unwrap();
+/// let (l, r) = (model.sole_centre_world(&poses, Side::Left), model.sole_centre_world(&poses, Side::Right));
+/// // On both soles with the CoM midway between their centres: each carries half of 10 N.
+/// let pose = StaticPose {
+///     base_world: &base,
+///     joints_rad: &joints,
+///     com_world_m: Point3::new((l.x + r.x) / 2.0, (l.y + r.y) / 2.0, 0.3),
+///     stance: Stance::Double,
+/// };
+/// let loads = sim_bridge::static_foot_loads(&model, &pose, 10.0).unwrap();
+/// assert_eq!(loads.len(), 2);
+/// assert!(loads.iter().all(|f| (f.force_n - 5.0).abs() < 1e-9), "{loads:?}");
+/// // Standing on the right sole alone, it carries all of it, under the CoM.
+/// let pose = StaticPose { stance: Stance::Single(Side::Right), ..pose };
+/// let loads = sim_bridge::static_foot_loads(&model, &pose, 10.0).unwrap();
+/// assert_eq!((loads.len(), loads[0].side, loads[0].force_n), (1, Side::Right, 10.0));
+/// ```
 pub fn static_foot_loads(
     model: &BipedModel,
-    sample: &GaitSample,
+    pose: &StaticPose,
     weight_n: f64,
 ) -> Result<Vec<FootLoad>, SimError> {
-    let c = sample.com_world_m;
+    let c = pose.com_world_m;
     if !c.coords.iter().all(|x| x.is_finite()) {
-        return Err(SimError::Plan(format!(
-            "t = {} s: CoM {c} is not finite",
-            sample.t_s
-        )));
+        return Err(SimError::Plan(format!("the planned CoM {c} is not finite")));
     }
-    let poses = poses(model, sample)?;
-    Ok(model.static_foot_loads(&poses, c, stance(sample), weight_n))
+    let poses = poses(model, pose)?;
+    Ok(model.static_foot_loads(&poses, c, pose.stance, weight_n))
 }
 
 /// The static torque (N·m; N for a prismatic joint) each joint's servo must give to hold
-/// the planned pose of `sample` with the floor reactions of [`static_foot_loads`], one per
-/// joint in [`ik_solver::RobotModel::dof_names`] order. Positive along the joint axis.
-///
-/// ```
-/// use ik_solver::{BipedModel, DEFAULT_URDF};
-/// let model = BipedModel::from_urdf_str(DEFAULT_URDF, None).unwrap();
-/// let plan = gait_planner::plan_walk(model.clone(), Default::default(), 1).unwrap();
-/// // Standing on the right foot, the left one in the air.
-/// let s = plan.iter().find(|s| s.support == gait_planner::Support::Right).unwrap();
-/// let tau = sim_bridge::static_torques_nm(&model, s).unwrap();
-/// let (r, l) = (model.robot().dof_index("r_knee").unwrap(), model.robot().dof_index("l_knee").unwrap());
-/// // The bent stance knee carries the robot; the swing knee only its shin and foot.
-/// assert!(tau[r].abs() > 0.2 && tau[l].abs() < 0.1, "{} {}", tau[r], tau[l]);
-/// ```
-pub fn static_torques_nm(model: &BipedModel, sample: &GaitSample) -> Result<Vec<f64>, SimError> {
+/// the planned pose with the floor reactions of [`static_foot_loads`], one per joint in
+/// [`ik_solver::RobotModel::dof_names`] order. Positive along the joint axis.
+pub fn static_torques_nm(model: &BipedModel, pose: &StaticPose) -> Result<Vec<f64>, SimError> {
     let weight_n = model.robot().total_mass_kg() * GRAVITY_M_S2;
-    let loads = static_foot_loads(model, sample, weight_n)?;
-    Ok(model.static_torques_nm(&poses(model, sample)?, &loads))
+    let loads = static_foot_loads(model, pose, weight_n)?;
+    Ok(model.static_torques_nm(&poses(model, pose)?, &loads))
 }
 
 /// The sag compensation of [`static_torques_nm`]: torque / kp per joint (rad), to add to the
 /// planned joint positions.
 pub fn static_compensation_rad(
     model: &BipedModel,
-    sample: &GaitSample,
+    pose: &StaticPose,
     kp_nm_per_rad: f64,
 ) -> Result<Vec<f64>, SimError> {
     if !(kp_nm_per_rad.is_finite() && kp_nm_per_rad > 0.0) {
@@ -97,7 +97,7 @@ pub fn static_compensation_rad(
             why: "must be above 0 N·m/rad".into(),
         });
     }
-    Ok(static_torques_nm(model, sample)?
+    Ok(static_torques_nm(model, pose)?
         .into_iter()
         .map(|t| t / kp_nm_per_rad)
         .collect())
@@ -107,11 +107,11 @@ pub fn static_compensation_rad(
 /// [`static_compensation_rad`].
 pub fn compensated_targets_rad(
     model: &BipedModel,
-    sample: &GaitSample,
+    pose: &StaticPose,
     kp_nm_per_rad: f64,
 ) -> Result<Vec<f64>, SimError> {
-    let offsets = static_compensation_rad(model, sample, kp_nm_per_rad)?;
-    Ok(sample
+    let offsets = static_compensation_rad(model, pose, kp_nm_per_rad)?;
+    Ok(pose
         .joints_rad
         .iter()
         .zip(offsets)

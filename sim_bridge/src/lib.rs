@@ -14,12 +14,13 @@
 //!
 //! Around it:
 //! - [`static_torques_nm`] / [`compensated_targets_rad`]: the servo-sag compensation of
-//!   ALGORITHM.md ("Position servos are springs"), from the URDF mass model alone;
-//! - [`Playback`], [`WalkMonitor`], [`run_plan`]: a gait_planner plan played open-loop, with
-//!   the measures of a walk ([`WalkReport`]: fall, tilt, heading, distance, foot slip,
-//!   centre of pressure);
+//!   ALGORITHM.md ("Position servos are springs") of a planned pose
+//!   ([`ik_solver::StaticPose`]), from the URDF mass model alone;
 //! - [`SimBackend`]: the simulator behind joint_bridge's [`joint_bridge::Backend`] trait,
 //!   so the node fleet can drive it like a servo board.
+//!
+//! Below the planning: this crate knows poses and joint vectors, not gait plans. Playing a plan
+//! into it and judging the walk (fall, tilt, distance, centre of pressure) is `walk_eval`'s.
 //!
 //! Pure library: no clock (physics time only advances when asked), no files, no middleware.
 //! MuJoCo comes from the PyPI wheel (`scripts/setup-python-env`), linked dynamically.
@@ -31,7 +32,6 @@ mod error;
 mod mjcf;
 mod mjmodel;
 mod sim;
-mod walk;
 
 pub use backend::SimBackend;
 pub use compensation::{
@@ -42,9 +42,6 @@ pub use error::SimError;
 pub use ik_solver::{FootLoad, GRAVITY_M_S2};
 pub use mjcf::{JointMap, MappedJoint};
 pub use sim::{
-    BODY_CONTACT_FRACTION, COP_MIN_FRACTION, ContactReading, Fall, FallReason, LOADED_FRACTION, Sim,
-};
-pub use walk::{
-    FallReport, Interpolation, Observation, PhaseMargin, PlayOptions, Playback, STANCE_FRACTION,
-    WalkMonitor, WalkReport, run_plan,
+    BODY_CONTACT_FRACTION, COP_MIN_FRACTION, ContactReading, Fall, FallReason, LOADED_FRACTION,
+    Sim, tilt_rad,
 };

@@ -4,9 +4,8 @@
 use std::fmt;
 use std::sync::Arc;
 
-use gait_planner::GaitSample;
-use gait_planner::support::{Xy, convex_hull, signed_margin};
-use ik_solver::{BipedModel, LegRoleMap, Side};
+use ik_solver::support::{Xy, convex_hull, signed_margin};
+use ik_solver::{BipedModel, LegRoleMap, Side, StaticPose};
 use mujoco_rs::prelude::*;
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion, Vector3};
 
@@ -23,8 +22,8 @@ pub const COP_MIN_FRACTION: f64 = 0.1;
 /// More than this share of the weight on anything but the soles is a fall.
 pub const BODY_CONTACT_FRACTION: f64 = 0.05;
 
-/// Angle between a pose's z axis and the world's (rad).
-pub(crate) fn tilt_rad(pose: &Isometry3<f64>) -> f64 {
+/// Angle between a pose's z axis and the world's (rad): the base's tilt from upright.
+pub fn tilt_rad(pose: &Isometry3<f64>) -> f64 {
     let z = pose.rotation * Vector3::z();
     z.z.clamp(-1.0, 1.0).acos()
 }
@@ -579,28 +578,28 @@ impl Sim {
     /// gravity forces of the model (`qfrc_bias` at rest) minus the floor reactions of
     /// [`crate::static_foot_loads`] mapped through the foot Jacobians. The same quantity as
     /// [`crate::static_torques_nm`] from the URDF mass model; kept as its cross-check.
-    pub fn static_torques_nm_mujoco(&self, sample: &GaitSample) -> Result<Vec<f64>, SimError> {
+    pub fn static_torques_nm_mujoco(&self, pose: &StaticPose) -> Result<Vec<f64>, SimError> {
         let l = &self.layout;
         let mut scratch =
             MjData::try_new(self.data.model_clone()).map_err(|e| SimError::Mujoco {
                 stage: "allocate data for",
                 message: e.to_string(),
             })?;
-        finite_joints(&l.dof_names, "position", &sample.joints_rad)?;
-        let t = sample.base_world.translation.vector;
-        let q = sample.base_world.rotation.quaternion();
+        finite_joints(&l.dof_names, "position", pose.joints_rad)?;
+        let t = pose.base_world.translation.vector;
+        let q = pose.base_world.rotation.quaternion();
         {
             let a = l.free_qpos_adr;
             let qpos = scratch.qpos_mut();
             qpos[a..a + 7].copy_from_slice(&[t.x, t.y, t.z, q.w, q.i, q.j, q.k]);
-            for (&adr, &v) in l.qpos_adr.iter().zip(&sample.joints_rad) {
+            for (&adr, &v) in l.qpos_adr.iter().zip(pose.joints_rad) {
                 qpos[adr] = v;
             }
         }
         scratch.forward();
         let nv = scratch.model().ffi().nv as usize;
         let mut tau = scratch.qfrc_bias().to_vec();
-        for load in static_foot_loads(&self.biped, sample, self.weight_n)? {
+        for load in static_foot_loads(&self.biped, pose, self.weight_n)? {
             let body = l.foot_bodies[load.side.index()];
             let p = load.point_world_m;
             let (jacp, _) = scratch

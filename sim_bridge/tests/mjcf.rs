@@ -1,15 +1,13 @@
 //! An MJCF-loaded robot: a scene written for these tests (sim_bridge/tests/data), not
-//! generated from the URDF, tied to config/biped.urdf by a joint map.
+//! generated from the URDF, tied to config/biped.urdf by a joint map. The scene's robot
+//! walking a plan: walk_eval/tests/mjcf_walk.rs.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::PathBuf;
 
-use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::{BipedModel, DEFAULT_URDF};
 use joint_bridge::{Backend, JointSpec};
-use sim_bridge::{JointMap, PlayOptions, Sim, SimBackend, SimConfig, SimError, run_plan};
-
-const STEPS: u32 = 20;
+use sim_bridge::{JointMap, Sim, SimBackend, SimConfig, SimError};
 
 fn data(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -32,65 +30,6 @@ fn map() -> JointMap {
 fn from_text(scene: &str, map_yaml: &str) -> Result<Sim, SimError> {
     let map = JointMap::from_yaml_str(map_yaml)?;
     Sim::from_mjcf_str(scene, &map, DEFAULT_URDF, None, &SimConfig::default())
-}
-
-#[test]
-fn the_scene_robot_walks_twenty_steps_with_a_joint_map() {
-    let mut sim = Sim::from_mjcf_file(
-        data("biped20_scene.xml"),
-        &map(),
-        DEFAULT_URDF,
-        None,
-        &SimConfig::default(),
-    )
-    .unwrap();
-    // The scene's physics, not the defaults of SimConfig: its servos and step.
-    let cfg = sim.config();
-    assert_eq!(cfg.kp_nm_per_rad, 30.0);
-    assert_eq!(cfg.kv_nm_s_per_rad, 0.25);
-    assert_eq!(cfg.torque_limit_nm, Some(1.5));
-    assert_eq!(cfg.armature_kg_m2, 0.005);
-    assert_eq!(cfg.timestep_s, 0.001);
-    assert_eq!(cfg.friction, 1.0);
-    // Joint vectors stay in the URDF's names and order.
-    let model = BipedModel::from_urdf_str(DEFAULT_URDF, None).unwrap();
-    let urdf_names: Vec<&str> = model.robot().dof_names().collect();
-    assert_eq!(sim.joint_names(), urdf_names.as_slice());
-    // Same masses as the URDF (2.3 kg, the sum of the link masses in its header comment).
-    assert!(
-        (sim.total_mass_kg() - 2.3).abs() < 1e-9,
-        "{}",
-        sim.total_mass_kg()
-    );
-
-    let mut planner = GaitPlanner::new(model, GaitParams::default()).unwrap();
-    let step_m = planner.config().step_length_m;
-    let plan = planner.plan(WalkRequest::Steps(STEPS)).unwrap();
-    let report = run_plan(&mut sim, &plan, &PlayOptions::default()).unwrap();
-    eprintln!("MJCF scene, 20-step walk:\n{report:#?}");
-    assert!(report.fell.is_none(), "fell: {:?}", report.fell);
-    assert!(
-        report.max_tilt_deg < 10.0,
-        "tilt {} deg",
-        report.max_tilt_deg
-    );
-    assert!(
-        report.heading_drift_deg < 5.0,
-        "heading drift {} deg",
-        report.heading_drift_deg
-    );
-    let want = f64::from(STEPS) * step_m;
-    assert!(
-        (report.distance_m - want).abs() <= 0.1 * want,
-        "walked {} m, 20 steps are {} m",
-        report.distance_m,
-        want
-    );
-    assert!(
-        report.cop_inside_fraction >= 0.99,
-        "CoP inside the support polygon {:.4} of the time",
-        report.cop_inside_fraction
-    );
 }
 
 #[test]

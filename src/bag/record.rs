@@ -224,7 +224,7 @@ impl Background {
     pub fn start(
         opts: RecordOptions,
         domain: u16,
-        range: biped_msgs::ros::DiscoveryRange,
+        range: node_runtime::DiscoveryRange,
     ) -> Result<Self> {
         if opts.dir.exists() {
             return Err(super::BagError::Exists {
@@ -232,7 +232,7 @@ impl Background {
             }
             .into());
         }
-        let context = biped_msgs::ros::context_for(domain, range)?;
+        let context = node_runtime::context_for(domain, range)?;
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
         let handle = std::thread::Builder::new()

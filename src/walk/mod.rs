@@ -24,9 +24,9 @@ use biped_msgs::msg::{
     Clock, GaitPhase, JointState, PointStamped, PolygonStamped, PoseStamped, StringMsg, Time,
     WalkCommand,
 };
-use biped_msgs::ros::{self, DiscoveryRange};
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::BipedModel;
+use node_runtime::DiscoveryRange;
 use smol::future::FutureExt as _;
 
 use crate::launch::{Fleet, LaunchOptions};
@@ -84,7 +84,7 @@ fn environment() -> anyhow::Result<DdsEnvironment> {
             std::env::var(k).ok()
         }
     };
-    let (domain, range) = ros::ros_environment_from(var)?;
+    let (domain, range) = node_runtime::ros_environment_from(var)?;
     let mut env = Vec::new();
     if !range_set {
         env.push(("ROS_AUTOMATIC_DISCOVERY_RANGE".into(), "LOCALHOST".into()));
@@ -99,12 +99,12 @@ fn environment() -> anyhow::Result<DdsEnvironment> {
 /// The gait parameters the gait_planner node will read from a parameter file (its own and
 /// wildcard sections; defaults for what the file does not set).
 fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
-    let args = ros::RosArgs {
+    let args = node_runtime::RosArgs {
         params_files: vec![path.display().to_string()],
         ..Default::default()
     };
     let mut map = serde_norway::Mapping::new();
-    for (k, v) in ros::node_parameters(&args, "gait_planner", "/")? {
+    for (k, v) in node_runtime::node_parameters(&args, "gait_planner", "/")? {
         if k != "robot_description_file" && k != "use_sim_time" {
             map.insert(serde_norway::Value::String(k), v);
         }
@@ -208,8 +208,8 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         fleet.spawn(node)?;
     }
 
-    let context = ros::context_for(domain, range)?;
-    let mut node = ros::create_node(
+    let context = node_runtime::context_for(domain, range)?;
+    let mut node = node_runtime::create_node(
         &context,
         "biped_walk",
         "/",
@@ -217,12 +217,12 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         None,
         false,
     )?;
-    let qos = ros::qos::default();
+    let qos = node_runtime::qos::default();
     macro_rules! sub {
         ($ty:ty, $name:literal) => {{
             let topic = node
                 .create_topic(
-                    &ros::topic_name(&Default::default(), "/", $name)?,
+                    &node_runtime::topic_name(&Default::default(), "/", $name)?,
                     <$ty as biped_msgs::RosMessage>::message_type_name(),
                     &qos,
                 )
@@ -241,7 +241,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     let fall = sub!(StringMsg, "/sim/fall");
     let walk_topic = node
         .create_topic(
-            &ros::topic_name(&Default::default(), "/", "/walk_command")?,
+            &node_runtime::topic_name(&Default::default(), "/", "/walk_command")?,
             <WalkCommand as biped_msgs::RosMessage>::message_type_name(),
             &qos,
         )
@@ -257,7 +257,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
 
     // Ctrl-C or SIGTERM ends the walk as a failure, but cleanly: the fleet is stopped and a
     // bag being recorded is closed, complete.
-    let interrupted = ros::shutdown_flag()?;
+    let interrupted = node_runtime::shutdown_flag()?;
     let wall0 = Instant::now();
     let mut first_clock_wall: Option<Instant> = None;
     let mut rec = Recording::default();

@@ -1,21 +1,21 @@
 //! `report.json`: the measures of a recorded walk.
 //!
 //! Each tick from the walk's first phase to the end of the recording is one
-//! [`sim_bridge::Observation`], built from the recorded topics alone: the base pose
+//! [`walk_eval::Observation`], built from the recorded topics alone: the base pose
 //! (`sim/base_pose`), the measured joints (`joint_states`) through the URDF's forward
 //! kinematics for the feet, the centre of pressure (`sim/cop`) against the support polygon
 //! of the loaded soles (`sim/support_polygon`). A foot stands when its sole centre lies
-//! inside that polygon. [`sim_bridge::WalkMonitor`] turns them into the measures.
+//! inside that polygon. [`walk_eval::WalkMonitor`] turns them into the measures.
 
 use std::collections::BTreeMap;
 
 use anyhow::Context;
-use gait_planner::support::signed_margin;
 use gait_planner::{GaitPlanner, GaitSample, PhaseKind};
+use ik_solver::support::signed_margin;
 use ik_solver::{BipedModel, Side};
 use nalgebra::Isometry3;
 use serde::Serialize;
-use sim_bridge::{Observation, WalkMonitor, WalkReport};
+use walk_eval::{Observation, WalkMonitor, WalkReport};
 
 use super::WalkOptions;
 use super::record::Recording;

@@ -59,6 +59,6 @@ pub fn in_netns(script: &str, domain_id: u32) -> Command {
     .env("ROS_DOMAIN_ID", domain_id.to_string())
     .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     .env_remove("ROS_LOCALHOST_ONLY")
-    .env_remove(biped_msgs::ros::LAUNCH_PARENT_ENV);
+    .env_remove(node_runtime::LAUNCH_PARENT_ENV);
     c
 }

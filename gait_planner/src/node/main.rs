@@ -23,9 +23,9 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{AnkleTargets, GaitPhase, Header, Point, Twist, WalkCommand};
-use biped_msgs::ros::{self, NodeSetup, RosNode, TickSource};
 use gait_planner::{GaitParams, GaitPlanner, GaitSample, PhaseKind, WalkRequest};
 use ik_solver::BipedModel;
+use node_runtime::{NodeSetup, RosNode, TickSource};
 use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
@@ -61,7 +61,7 @@ fn declared(
     if let serde_norway::Value::Mapping(m) = serde_norway::to_value(params)? {
         for (k, v) in m {
             let name = k.as_str().unwrap_or_default().to_owned();
-            out.insert(name.clone(), ros::to_parameter_value(&name, &v)?);
+            out.insert(name.clone(), node_runtime::to_parameter_value(&name, &v)?);
         }
     }
     out.insert(
@@ -294,7 +294,7 @@ fn run() -> anyhow::Result<()> {
             };
             map.insert(
                 serde_norway::Value::String(name.into()),
-                ros::from_parameter_value(value),
+                node_runtime::from_parameter_value(value),
             );
             candidate = serde_norway::from_value(serde_norway::Value::Mapping(map))
                 .map_err(|e| format!("{name}: {e}"))?;
@@ -307,7 +307,7 @@ fn run() -> anyhow::Result<()> {
     };
     let declared = declared(&params, &robot_file)?;
     let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
-    let stop = ros::shutdown_flag()?;
+    let stop = node_runtime::shutdown_flag()?;
     let phase_pub = ros.publisher::<GaitPhase>("gait/phase")?;
     let targets_pub = ros.publisher::<AnkleTargets>("gait/ankle_targets")?;
     let cmd_vel = ros.subscription::<Twist>("cmd_vel")?;

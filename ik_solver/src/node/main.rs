@@ -16,9 +16,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{AnkleTargets, JointState};
-use biped_msgs::ros::{self, NodeSetup, RosNode};
 use ik_solver::{AnkleTarget, BipedModel, Side};
 use nalgebra::Vector3;
+use node_runtime::{NodeSetup, RosNode};
 use ros2_client::ParameterValue;
 use smol::future::FutureExt as _;
 
@@ -71,7 +71,7 @@ fn run() -> anyhow::Result<()> {
             setup.own_args
         );
     }
-    ros::check_known(&setup.params, &[ROBOT_PARAM])?;
+    node_runtime::check_known(&setup.params, &[ROBOT_PARAM])?;
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
     let model = BipedModel::from_file_or_default(&robot_file, None)
         .with_context(|| format!("{ROBOT_PARAM} `{robot_file}`"))?;
@@ -99,7 +99,7 @@ fn run() -> anyhow::Result<()> {
         }
     };
     let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
-    let stop = ros::shutdown_flag()?;
+    let stop = node_runtime::shutdown_flag()?;
     let sub = ros.subscription::<AnkleTargets>("gait/ankle_targets")?;
     let publisher = ros.publisher::<JointState>("joint_commands")?;
     let executor = ros.executor()?;

@@ -34,12 +34,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue};
-use biped_msgs::ros::{self, NodeSetup, RosNode, Tick, TickSource};
 use ik_solver::BipedModel;
 use joint_bridge::{
     Backend, Backoff, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend,
     SagCompensation, TimeoutAction,
 };
+use node_runtime::{NodeSetup, RosNode, Tick, TickSource};
 use ros2_client::ParameterValue;
 use smol::future::FutureExt as _;
 
@@ -81,7 +81,7 @@ fn run() -> anyhow::Result<()> {
         .chain(&serial_setup::PARAMS)
         .copied()
         .collect();
-    ros::check_known(&setup.params, &known)?;
+    node_runtime::check_known(&setup.params, &known)?;
     let robot_file = setup.str_param("robot_description_file", "")?;
     let backend_name = setup.str_param("backend", "mock")?;
     let rate_hz = setup.f64_param("rate_hz", 100.0)?;
@@ -179,8 +179,8 @@ fn run() -> anyhow::Result<()> {
         ),
     ]);
     declared.extend(serial.declared());
-    let mut ros = RosNode::start(setup, &declared, Some(ros::read_at_startup()))?;
-    let stop = ros::shutdown_flag()?;
+    let mut ros = RosNode::start(setup, &declared, Some(node_runtime::read_at_startup()))?;
+    let stop = node_runtime::shutdown_flag()?;
     let sub = ros.subscription::<JointState>("joint_commands")?;
     let mut ticks = TickSource::new(&mut ros, rate_hz)?;
     let simulated = ticks.simulated();

@@ -3,9 +3,9 @@
 
 use std::collections::BTreeMap;
 
-use biped_msgs::ros::NodeSetup;
 use joint_bridge::serial::{Calibration, Protocol, SerialBackend, SerialConfig};
 use joint_bridge::{Backoff, JointSpec};
+use node_runtime::NodeSetup;
 use ros2_client::ParameterValue;
 
 /// The serial parameter names.

@@ -40,7 +40,7 @@ use biped_msgs::msg::{
     Clock, Header, JointState, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose,
     PoseStamped, Quaternion, StringMsg, Time,
 };
-use biped_msgs::ros::{self, NodeSetup, RosNode};
+use node_runtime::{NodeSetup, RosNode};
 use ros2_client::{ParameterValue, Publisher};
 use sim_bridge::{JointMap, Sim, SimConfig};
 
@@ -205,7 +205,7 @@ fn run() -> anyhow::Result<()> {
         );
     }
     let known: Vec<&str> = SIM_PARAMS.iter().chain(&NODE_PARAMS).copied().collect();
-    ros::check_known(&setup.params, &known)?;
+    node_runtime::check_known(&setup.params, &known)?;
     let robot_file = setup.str_param("robot_description_file", "")?;
     let lockstep = match setup.params.get("lockstep") {
         None => true,
@@ -294,8 +294,8 @@ fn run() -> anyhow::Result<()> {
     ] {
         declared.insert(k.into(), ParameterValue::Double(v));
     }
-    let mut ros = RosNode::start(setup, &declared, Some(ros::read_at_startup()))?;
-    let stop = ros::shutdown_flag()?;
+    let mut ros = RosNode::start(setup, &declared, Some(node_runtime::read_at_startup()))?;
+    let stop = node_runtime::shutdown_flag()?;
     let commands = ros.subscription::<JointState>("sim/joint_commands")?;
     let out = Outputs {
         joint_states: ros.publisher::<JointState>("joint_states")?,

@@ -1,6 +1,6 @@
 //! The ROS 2 command line and parameter files, as `ros2 run` users write them.
 
-use biped_msgs::ros::{NodeSetup, RosArgs, node_parameters, topic_name};
+use node_runtime::{NodeSetup, RosArgs, node_parameters, topic_name};
 use serde_norway::Value;
 
 fn args(s: &str) -> Vec<String> {
@@ -163,7 +163,7 @@ fn node_setup_reads_typed_parameters() {
             .contains("bad")
     );
     assert!(
-        biped_msgs::ros::check_known(&s.params, &["rate_hz", "backend"])
+        node_runtime::check_known(&s.params, &["rate_hz", "backend"])
             .unwrap_err()
             .to_string()
             .contains("`bad`")
@@ -172,7 +172,7 @@ fn node_setup_reads_typed_parameters() {
 
 #[test]
 fn domain_id_and_discovery_range_from_the_environment() {
-    use biped_msgs::ros::{DiscoveryRange, ros_environment_from};
+    use node_runtime::{DiscoveryRange, ros_environment_from};
     let env = |pairs: &'static [(&'static str, &'static str)]| {
         move |k: &str| {
             pairs

@@ -6,9 +6,7 @@ use ik_solver::BipedModel;
 use nalgebra::{Isometry3, Vector3};
 use serde::Serialize;
 
-use crate::compensation::compensated_targets_rad;
-use crate::error::SimError;
-use crate::sim::{Sim, tilt_rad};
+use sim_bridge::{Sim, SimError, compensated_targets_rad, tilt_rad};
 
 /// A sole carrying more than this share of the weight is standing (for the slip measure).
 pub const STANCE_FRACTION: f64 = 0.05;
@@ -60,7 +58,7 @@ impl Playback {
             }
             t_s.push(t);
             targets_rad.push(match compensation_kp {
-                Some(kp) => compensated_targets_rad(model, s, kp)?,
+                Some(kp) => compensated_targets_rad(model, &s.static_pose(), kp)?,
                 None => {
                     model
                         .robot()
@@ -376,7 +374,7 @@ impl WalkMonitor {
 /// let model = BipedModel::from_urdf_str(DEFAULT_URDF, None)?;
 /// let plan = gait_planner::plan_walk(model, Default::default(), 2)?;
 /// let mut sim = sim_bridge::Sim::from_urdf_str(DEFAULT_URDF, None, &Default::default())?;
-/// let report = sim_bridge::run_plan(&mut sim, &plan, &Default::default())?;
+/// let report = walk_eval::run_plan(&mut sim, &plan, &Default::default())?;
 /// assert!(report.fell.is_none());
 /// # Ok(()) }
 /// ```

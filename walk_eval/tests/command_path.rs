@@ -6,7 +6,8 @@
 use gait_planner::{GaitParams, GaitPlanner, Support, WalkRequest};
 use ik_solver::{BipedModel, DEFAULT_URDF, Side, Stance};
 use joint_bridge::{BridgeConfig, JointBridge, JointSpec, SagCompensation};
-use sim_bridge::{SimBackend, SimConfig, WalkMonitor, static_compensation_rad};
+use sim_bridge::{SimBackend, SimConfig, static_compensation_rad};
+use walk_eval::WalkMonitor;
 
 fn model() -> BipedModel {
     BipedModel::from_urdf_str(DEFAULT_URDF, None).unwrap()
@@ -30,7 +31,7 @@ fn compensation_from_the_pose_matches_the_plan() {
             .link_poses(&s.base_world, &s.joints_rad)
             .unwrap();
         let stance = model.stance_of_pose(&poses);
-        let from_plan = static_compensation_rad(&model, s, kp).unwrap();
+        let from_plan = static_compensation_rad(&model, &s.static_pose(), kp).unwrap();
         let from_pose = model.sag_compensation_rad(&s.joints_rad, kp).unwrap();
         let worst = from_plan
             .iter()

@@ -1,4 +1,5 @@
-//! Support polygons and the CoM's signed margin to them, in the floor plane (x, y in m).
+//! Support polygons and a point's signed margin to them, in the floor plane (x, y in m): the
+//! planned CoM's (gait_planner) and the measured centre of pressure's (sim_bridge).
 
 /// A point on the floor (x, y), m.
 pub type Xy = [f64; 2];
@@ -52,7 +53,7 @@ fn segment_distance(p: Xy, a: Xy, b: Xy) -> f64 {
 /// clockwise): positive inside, negative outside, zero on the edge.
 ///
 /// ```
-/// use gait_planner::support::signed_margin;
+/// use ik_solver::support::signed_margin;
 /// let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
 /// assert_eq!(signed_margin(&square, [0.5, 0.25]), 0.25);
 /// assert_eq!(signed_margin(&square, [2.0, 0.5]), -1.0);

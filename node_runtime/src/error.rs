@@ -1,0 +1,30 @@
+//! The one error type of the node runtime: why a node could not start.
+
+/// Why a node could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RosError {
+    /// A bad `--ros-args` argument.
+    #[error("bad --ros-args: {0}")]
+    Args(String),
+    /// A parameter file that cannot be read or parsed, or a bad parameter.
+    #[error("parameters: {0}")]
+    Params(String),
+    /// A bad ROS environment variable.
+    #[error("environment variable {name}={value}: {why}")]
+    Env {
+        /// The variable.
+        name: &'static str,
+        /// Its value.
+        value: String,
+        /// What is wrong.
+        why: String,
+    },
+    /// DDS or ros2-client refused to create something.
+    #[error("{what}: {message}")]
+    Dds {
+        /// What was being created.
+        what: String,
+        /// The library's message.
+        message: String,
+    },
+}

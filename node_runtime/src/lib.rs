@@ -1,0 +1,39 @@
+//! What every ROS 2 node of the fleet shares, above the wire types (`biped_msgs`) and below
+//! the node binaries:
+//!
+//! - [`args`]: the `--ros-args` command line (remaps, `__node`, `__ns`, `--params-file`, `-p`,
+//!   `--log-level`) and topic names resolved through the remaps and the namespace;
+//! - [`params`]: ROS 2 parameter files and `-p` for one node, YAML ↔ ROS parameter values,
+//!   unknown names refused, sets from peers checked;
+//! - [`context`]: the DDS context from `ROS_DOMAIN_ID` and `ROS_AUTOMATIC_DISCOVERY_RANGE`
+//!   (LOCALHOST keeps DDS on 127.0.0.1);
+//! - [`qos`]: the fleet's QoS profiles;
+//! - [`log`]: logging to the console and `/rosout` at once;
+//! - [`clock`]: control ticks from the monotonic clock or from `/clock` (`use_sim_time`);
+//! - [`node`]: start-up ([`NodeSetup`], [`shutdown_flag`]) and the started node
+//!   ([`RosNode`]: typed publishers and subscriptions, logging, the executor).
+//!
+//! ros2-client (pure Rust over RustDDS) underneath; no core crate depends on this one, only
+//! the node binaries (each core crate's `node` feature) and the `biped` command.
+
+pub mod args;
+pub mod clock;
+pub mod context;
+mod error;
+pub mod log;
+pub mod node;
+pub mod params;
+pub mod qos;
+
+pub use args::{RosArgs, topic_name};
+pub use clock::{Tick, TickSource, Ticker};
+pub use context::{
+    DiscoveryRange, context_for, context_from_env, ros_environment, ros_environment_from,
+};
+pub use error::RosError;
+pub use log::Log;
+pub use node::{LAUNCH_PARENT_ENV, NodeSetup, RosNode, create_node, shutdown_flag};
+pub use params::{
+    ParameterCheck, check_known, from_parameter_value, node_parameters, read_at_startup,
+    to_parameter_value,
+};

@@ -1,0 +1,309 @@
+//! Starting a node: what it knows before DDS ([`NodeSetup`]: arguments, name, namespace,
+//! parameters), the ros2-client node with parameter services and `/rosout`, shutdown on
+//! SIGINT/SIGTERM or when `biped launch` is gone, and [`RosNode`]: typed publishers and
+//! subscriptions on resolved topic names, logging, and the executor.
+
+use std::collections::BTreeMap;
+
+use biped_msgs::RosMessage;
+use ros2_client::{Context, Node, NodeName, NodeOptions, ParameterValue};
+use serde_norway::Value;
+
+use crate::args::{RosArgs, topic_name};
+use crate::context::context_from_env;
+use crate::error::RosError;
+use crate::log::Log;
+use crate::params::{ParameterCheck, node_parameters};
+use crate::qos;
+
+/// Creates a node with parameter services and `/rosout` on, with the given parameters
+/// declared; `use_sim_time` makes its clock follow `/clock`.
+pub fn create_node(
+    context: &Context,
+    name: &str,
+    namespace: &str,
+    declared: &BTreeMap<String, ParameterValue>,
+    on_set: Option<ParameterCheck>,
+    use_sim_time: bool,
+) -> Result<Node, RosError> {
+    let ns = if namespace.starts_with('/') {
+        namespace.to_owned()
+    } else {
+        format!("/{namespace}")
+    };
+    let node_name = NodeName::new(&ns, name)
+        .map_err(|e| RosError::Args(format!("node name `{ns}/{name}`: {e:?}")))?;
+    let mut options = NodeOptions::new()
+        .enable_rosout(true)
+        .start_parameter_services(true);
+    for (k, v) in declared {
+        options = options.declare_parameter(k, v.clone());
+    }
+    if let Some(f) = on_set {
+        // ros2-client validates the declared values too: those are the start-up values.
+        let initial = declared.clone();
+        options =
+            options.parameter_validator(Box::new(move |name: &str, value: &ParameterValue| {
+                if initial.get(name) == Some(value) {
+                    Ok(())
+                } else {
+                    f(name, value)
+                }
+            }));
+    }
+    let node = context
+        .new_node(node_name, options)
+        .map_err(|e| RosError::Dds {
+            what: format!("node {name}"),
+            message: format!("{e:?}"),
+        })?;
+    if use_sim_time {
+        node.set_parameter("use_sim_time", ParameterValue::Boolean(true))
+            .map_err(|e| RosError::Params(format!("use_sim_time: {e}")))?;
+    }
+    Ok(node)
+}
+
+/// What a node knows before it touches DDS: its ROS arguments, name, namespace and
+/// parameters (files, then `-p`).
+#[derive(Debug, Clone)]
+pub struct NodeSetup {
+    /// The parsed `--ros-args`.
+    pub args: RosArgs,
+    /// Arguments before `--ros-args` (nodes take none; `--help` prints usage).
+    pub own_args: Vec<String>,
+    /// Node name (default, or `-r __node:=`).
+    pub name: String,
+    /// Namespace (`/`, or `-r __ns:=`).
+    pub namespace: String,
+    /// This node's parameters from the files and `-p`, dotted names.
+    pub params: BTreeMap<String, Value>,
+}
+
+impl NodeSetup {
+    /// From the process's command line.
+    pub fn from_env(default_name: &str) -> Result<Self, RosError> {
+        Self::from_args(std::env::args().skip(1), default_name)
+    }
+
+    /// From a command line (without the program name).
+    pub fn from_args(
+        args: impl IntoIterator<Item = String>,
+        default_name: &str,
+    ) -> Result<Self, RosError> {
+        let (own_args, args) = RosArgs::parse(args, default_name)?;
+        let name = args
+            .node_name
+            .clone()
+            .unwrap_or_else(|| default_name.to_owned());
+        let namespace = args.namespace.clone().unwrap_or_else(|| "/".to_owned());
+        let params = node_parameters(&args, &name, &namespace)?;
+        Ok(Self {
+            args,
+            own_args,
+            name,
+            namespace,
+            params,
+        })
+    }
+
+    /// The `use_sim_time` parameter (false unless set true).
+    pub fn use_sim_time(&self) -> bool {
+        self.params
+            .get("use_sim_time")
+            .and_then(Value::as_bool)
+            .unwrap_or(false)
+    }
+
+    /// A string parameter, or `default`.
+    pub fn str_param(&self, name: &str, default: &str) -> Result<String, RosError> {
+        match self.params.get(name) {
+            None => Ok(default.to_owned()),
+            Some(Value::String(s)) => Ok(s.clone()),
+            Some(other) => Err(RosError::Params(format!(
+                "parameter `{name}` must be a string, not {other:?}"
+            ))),
+        }
+    }
+
+    /// A number parameter, or `default`.
+    pub fn f64_param(&self, name: &str, default: f64) -> Result<f64, RosError> {
+        match self.params.get(name) {
+            None => Ok(default),
+            Some(v) => v.as_f64().filter(|x| x.is_finite()).ok_or_else(|| {
+                RosError::Params(format!(
+                    "parameter `{name}` must be a finite number, not {v:?}"
+                ))
+            }),
+        }
+    }
+}
+
+/// The environment variable through which `biped launch` gives its nodes its process id.
+pub const LAUNCH_PARENT_ENV: &str = "BIPED_LAUNCH_PARENT";
+
+/// Set by SIGINT or SIGTERM: the node's loops end, torque goes off, DDS says goodbye.
+pub fn shutdown_flag() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>, RosError> {
+    let flag = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let f = flag.clone();
+    ctrlc::set_handler(move || f.store(true, std::sync::atomic::Ordering::SeqCst)).map_err(
+        |e| RosError::Dds {
+            what: "signal handler".into(),
+            message: e.to_string(),
+        },
+    )?;
+    // Started by `biped launch`: also stop when the launcher is gone, so a launcher killed
+    // without a chance to clean up leaves no node running.
+    if let Some(parent) = std::env::var(LAUNCH_PARENT_ENV)
+        .ok()
+        .and_then(|p| p.parse::<u32>().ok())
+    {
+        let f = flag.clone();
+        std::thread::spawn(move || {
+            while !f.load(std::sync::atomic::Ordering::SeqCst) {
+                if std::os::unix::process::parent_id() != parent {
+                    f.store(true, std::sync::atomic::Ordering::SeqCst);
+                }
+                std::thread::sleep(std::time::Duration::from_millis(200));
+            }
+        });
+    }
+    Ok(flag)
+}
+
+/// A started node: the DDS context, the ros2-client node, its setup and its log, with
+/// helpers that create typed publishers and subscriptions on resolved topic names.
+pub struct RosNode {
+    /// The node.
+    pub node: Node,
+    /// What it was started with.
+    pub setup: NodeSetup,
+    /// Console + `/rosout`.
+    pub log: Log,
+    // The node keeps its DDS participant alive through this.
+    _context: Context,
+    /// When each throttled message was last logged, and how many were held back since.
+    throttled: std::sync::Mutex<BTreeMap<String, (std::time::Instant, u64)>>,
+}
+
+impl std::fmt::Debug for RosNode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RosNode")
+            .field("node", &self.node.fully_qualified_name())
+            .finish()
+    }
+}
+
+fn dds_err(what: String) -> impl FnOnce(ros2_client::ros2::CreateError) -> RosError {
+    move |e| RosError::Dds {
+        what,
+        message: format!("{e:?}"),
+    }
+}
+
+impl RosNode {
+    /// Joins the DDS domain of the environment and creates the node with its declared
+    /// parameters and parameter check.
+    pub fn start(
+        setup: NodeSetup,
+        declared: &BTreeMap<String, ParameterValue>,
+        check: Option<ParameterCheck>,
+    ) -> Result<Self, RosError> {
+        let context = context_from_env()?;
+        let node = create_node(
+            &context,
+            &setup.name,
+            &setup.namespace,
+            declared,
+            check,
+            setup.use_sim_time(),
+        )?;
+        let log = Log::new(&node, &setup.args);
+        Ok(Self {
+            node,
+            setup,
+            log,
+            _context: context,
+            throttled: std::sync::Mutex::new(BTreeMap::new()),
+        })
+    }
+
+    fn topic<M: RosMessage>(
+        &self,
+        name: &str,
+    ) -> Result<ros2_client::dds::rustdds::Topic, RosError> {
+        let resolved = topic_name(&self.setup.args, &self.setup.namespace, name)?;
+        self.node
+            .create_topic(&resolved, M::message_type_name(), &qos::default())
+            .map_err(dds_err(format!("topic {name}")))
+    }
+
+    /// A publisher of `M` on topic `name` (remapped, in the namespace), default QoS.
+    pub fn publisher<M: RosMessage>(
+        &mut self,
+        name: &str,
+    ) -> Result<ros2_client::Publisher<M>, RosError> {
+        let topic = self.topic::<M>(name)?;
+        self.node
+            .create_publisher::<M>(&topic, Some(qos::publisher()))
+            .map_err(dds_err(format!("publisher {name}")))
+    }
+
+    /// A subscription to `M` on topic `name` (remapped, in the namespace), default QoS.
+    pub fn subscription<M: RosMessage + 'static>(
+        &mut self,
+        name: &str,
+    ) -> Result<ros2_client::Subscription<M>, RosError> {
+        let topic = self.topic::<M>(name)?;
+        self.node
+            .create_subscription::<M>(&topic, None)
+            .map_err(dds_err(format!("subscription {name}")))
+    }
+
+    /// An executor running the node's spinner (discovery, parameter services, `/clock`).
+    pub fn executor(&mut self) -> Result<smol::LocalExecutor<'static>, RosError> {
+        let spinner = self.node.spinner().map_err(|e| RosError::Dds {
+            what: "spinner".into(),
+            message: format!("{e:?}"),
+        })?;
+        let executor = smol::LocalExecutor::new();
+        executor.spawn(spinner.spin()).detach();
+        Ok(executor)
+    }
+
+    /// Logs at info.
+    pub fn info(&self, msg: &str) {
+        self.log.info(&self.node, msg);
+    }
+    /// Logs a warning.
+    pub fn warn(&self, msg: &str) {
+        self.log.warn(&self.node, msg);
+    }
+    /// Logs an error.
+    pub fn error(&self, msg: &str) {
+        self.log.error(&self.node, msg);
+    }
+
+    /// Logs an error at most once a second per `key`, saying how many were held back.
+    pub fn error_throttled(&self, key: &str, msg: &str) {
+        let Ok(mut t) = self.throttled.lock() else {
+            return self.error(msg);
+        };
+        let now = std::time::Instant::now();
+        match t.get_mut(key) {
+            Some((last, held)) if now.duration_since(*last) < std::time::Duration::from_secs(1) => {
+                *held += 1;
+            }
+            entry => {
+                let held = entry.map_or(0, |e| e.1);
+                t.insert(key.to_owned(), (now, 0));
+                drop(t);
+                if held > 0 {
+                    self.error(&format!("{msg} ({held} more like it in the last second)"));
+                } else {
+                    self.error(msg);
+                }
+            }
+        }
+    }
+}

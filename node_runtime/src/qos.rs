@@ -1,0 +1,25 @@
+//! QoS profiles of the fleet's topics.
+
+use ros2_client::QosProfile;
+use ros2_client::qos::{Durability, History, Reliability, WhenFull};
+
+/// rclpy's default for publishers and subscriptions (depth 10): reliable, volatile,
+/// keep last 10. Used for every command and state topic, as ROS tools expect.
+pub fn default() -> QosProfile {
+    QosProfile::publisher_default()
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 10 })
+}
+
+/// What the fleet's publishers use: [`default`] as the other side sees it (reliable,
+/// volatile), with 1 s of unacknowledged samples at 100 Hz in the send window, and a full
+/// window fails the publish at once instead of waiting: a slow observer (a loaded
+/// rclpy, RViz or Foxglove) costs that observer samples, never the control loop its
+/// time.
+pub fn publisher() -> QosProfile {
+    default()
+        .history(History::KeepLast { depth: 100 })
+        .reliability(Reliability::Reliable {
+            when_full: WhenFull::Fail,
+        })
+}
