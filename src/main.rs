@@ -1,6 +1,10 @@
 //! `biped`: the commands users run. `biped walk` walks the robot in MuJoCo with the ROS 2
 //! fleet and measures it; `biped launch` runs the fleet; `biped plan` plans a walk offline;
 //! `biped record` and `biped replay` write and play rosbag2 bags.
+//!
+//! The top layer (README, "What is where"): it uses the core libraries (ik_solver,
+//! gait_planner, sim_bridge, walk_eval for the walk's measures) and the middleware edge
+//! (node_runtime, biped_msgs); nothing depends on it.
 
 mod bag;
 mod launch;

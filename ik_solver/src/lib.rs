@@ -6,8 +6,13 @@
 //! offsets, sole rectangles and axis signs) → [`BipedModel::solve_legs`] (ankle targets
 //! relative to the hips → joint angles in URDF convention).
 //!
+//! Also the statics of a pose held still ([`StaticPose`]: floor reactions and joint torques,
+//! for the servo-sag compensation) and [`support`] polygons, which the planner (the CoM's
+//! margin) and the simulator (the measured centre of pressure's) both use: the bottom layer
+//! of the workspace, depending on no other crate of it.
+//!
 //! Pure library: no I/O beyond reading a URDF file when asked, no clock, no middleware. The
-//! `ik_solver` ROS 2 node wraps it. Frames follow REP-103 (x forward, y left, z up), lengths
+//! `ik_solver` ROS 2 node wraps it (the `node` feature). Frames follow REP-103 (x forward, y left, z up), lengths
 //! in metres, angles in radians.
 
 mod error;

@@ -31,7 +31,7 @@ pub struct SimConfig {
     /// The robot has fallen when its base tilts more than this from upright (deg).
     pub fall_tilt_deg: f64,
     /// The robot has fallen when its base drops more than this below its height at the last
-    /// [`crate::Sim::set_pose`] (m).
+    /// [`crate::Sim::reset`] or [`crate::Sim::stand`] (m).
     pub fall_height_drop_m: f64,
     /// How long the servos hold the first pose before a plan is played or a backend reports
     /// ready (s): the robot settles on its feet.

@@ -3,6 +3,8 @@
 //! default plan.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::PathBuf;
 
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
@@ -56,27 +58,5 @@ fn the_scene_robot_walks_twenty_steps_with_a_joint_map() {
     let plan = planner.plan(WalkRequest::Steps(STEPS)).unwrap();
     let report = run_plan(&mut sim, &plan, &PlayOptions::default()).unwrap();
     eprintln!("MJCF scene, 20-step walk:\n{report:#?}");
-    assert!(report.fell.is_none(), "fell: {:?}", report.fell);
-    assert!(
-        report.max_tilt_deg < 10.0,
-        "tilt {} deg",
-        report.max_tilt_deg
-    );
-    assert!(
-        report.heading_drift_deg < 5.0,
-        "heading drift {} deg",
-        report.heading_drift_deg
-    );
-    let want = f64::from(STEPS) * step_m;
-    assert!(
-        (report.distance_m - want).abs() <= 0.1 * want,
-        "walked {} m, 20 steps are {} m",
-        report.distance_m,
-        want
-    );
-    assert!(
-        report.cop_inside_fraction >= 0.99,
-        "CoP inside the support polygon {:.4} of the time",
-        report.cop_inside_fraction
-    );
+    common::assert_walked_well(&report, f64::from(STEPS) * step_m);
 }

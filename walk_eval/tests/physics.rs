@@ -3,6 +3,8 @@
 //! Every number asserted here comes out of the physics engine; nothing is mocked.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::sync::OnceLock;
 
 use gait_planner::{GaitParams, GaitPlanner, GaitSample, PhaseKind, Support, WalkRequest};
@@ -57,29 +59,7 @@ fn walks_twenty_steps_with_the_default_gait() {
         report.duration_s,
         wall.elapsed().as_secs_f64()
     );
-    assert!(report.fell.is_none(), "fell: {:?}", report.fell);
-    assert!(
-        report.max_tilt_deg < 10.0,
-        "tilt {} deg",
-        report.max_tilt_deg
-    );
-    assert!(
-        report.heading_drift_deg < 5.0,
-        "heading drift {} deg",
-        report.heading_drift_deg
-    );
-    assert!(
-        report.cop_inside_fraction >= 0.99,
-        "CoP inside the support polygon {:.4} of the time",
-        report.cop_inside_fraction
-    );
-    let want = f64::from(STEPS) * step_m;
-    assert!(
-        (report.distance_m - want).abs() <= 0.1 * want,
-        "walked {} m, 20 steps are {} m",
-        report.distance_m,
-        want
-    );
+    common::assert_walked_well(&report, f64::from(STEPS) * step_m);
     // Every phase kind of the walk was measured.
     for kind in [
         PhaseKind::Crouch,
