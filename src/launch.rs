@@ -57,7 +57,7 @@ pub struct SerialArgs {
     /// Baud rate.
     #[arg(long, value_name = "N")]
     pub baud: Option<u32>,
-    /// Calibration file. Default: config/calibration_<protocol>.yaml.
+    /// Calibration file. Default: `config/calibration_<protocol>.yaml`.
     #[arg(long, value_name = "FILE")]
     pub calibration: Option<PathBuf>,
 }

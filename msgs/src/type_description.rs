@@ -22,7 +22,7 @@
 //! | int16 / uint16 | 4 / 5 | char | 13 |
 //! | int32 / uint32 | 6 / 7 | bool (`boolean`) | 15 |
 //! | int64 / uint64 | 8 / 9 | byte (`octet`) | 16 |
-//! | string / bounded string<N> | 17 / 21 | wstring / wstring<N> | 18 / 22 |
+//! | string / bounded `string<N>` | 17 / 21 | wstring / `wstring<N>` | 18 / 22 |
 //!
 //! The tests check every hash against the ones rosidl installed with the ROS wheels and
 //! against the `rosbags` library's own computation.
