@@ -5,6 +5,7 @@
 //! World frame: on the floor at the midpoint between the feet of the initial pose, x forward,
 //! y left, z up. The pelvis is kept level and facing +x.
 
+use ik_solver::support::{Xy, convex_hull, signed_margin};
 use ik_solver::{AnkleTarget, BipedModel, IkIssue, Side, StaticPose};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
@@ -12,7 +13,6 @@ use crate::error::GaitError;
 use crate::params::{GaitConfig, GaitParams};
 use crate::phase::{PhaseKind, Support, WalkRequest};
 use crate::trajectory::{min_jerk, swing_advance, swing_height};
-use ik_solver::support::{Xy, convex_hull, signed_margin};
 
 /// Times closer than this are the same instant (s); far below any control period.
 const TIME_EPSILON_S: f64 = 1e-9;

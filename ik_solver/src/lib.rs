@@ -12,8 +12,8 @@
 //! of the workspace, depending on no other crate of it.
 //!
 //! Pure library: no I/O beyond reading a URDF file when asked, no clock, no middleware. The
-//! `ik_solver` ROS 2 node wraps it (the `node` feature). Frames follow REP-103 (x forward, y left, z up), lengths
-//! in metres, angles in radians.
+//! `ik_solver` ROS 2 node wraps it (the `node` feature). Frames follow REP-103 (x forward,
+//! y left, z up), lengths in metres, angles in radians.
 
 mod error;
 mod ik;

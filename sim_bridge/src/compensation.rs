@@ -66,12 +66,21 @@ pub fn static_foot_loads(
     pose: &StaticPose,
     weight_n: f64,
 ) -> Result<Vec<FootLoad>, SimError> {
+    loads_of(model, pose, &poses(model, pose)?, weight_n)
+}
+
+/// [`static_foot_loads`] with the pose's link poses already computed.
+fn loads_of(
+    model: &BipedModel,
+    pose: &StaticPose,
+    link_poses: &[Isometry3<f64>],
+    weight_n: f64,
+) -> Result<Vec<FootLoad>, SimError> {
     let c = pose.com_world_m;
     if !c.coords.iter().all(|x| x.is_finite()) {
         return Err(SimError::Plan(format!("the planned CoM {c} is not finite")));
     }
-    let poses = poses(model, pose)?;
-    Ok(model.static_foot_loads(&poses, c, pose.stance, weight_n))
+    Ok(model.static_foot_loads(link_poses, c, pose.stance, weight_n))
 }
 
 /// The static torque (N·m; N for a prismatic joint) each joint's servo must give to hold
@@ -79,8 +88,9 @@ pub fn static_foot_loads(
 /// [`ik_solver::RobotModel::dof_names`] order. Positive along the joint axis.
 pub fn static_torques_nm(model: &BipedModel, pose: &StaticPose) -> Result<Vec<f64>, SimError> {
     let weight_n = model.robot().total_mass_kg() * GRAVITY_M_S2;
-    let loads = static_foot_loads(model, pose, weight_n)?;
-    Ok(model.static_torques_nm(&poses(model, pose)?, &loads))
+    let link_poses = poses(model, pose)?;
+    let loads = loads_of(model, pose, &link_poses, weight_n)?;
+    Ok(model.static_torques_nm(&link_poses, &loads))
 }
 
 /// The sag compensation of [`static_torques_nm`]: torque / kp per joint (rad), to add to the

@@ -5,7 +5,6 @@ use gait_planner::{GaitSample, PhaseKind};
 use ik_solver::BipedModel;
 use nalgebra::{Isometry3, Vector3};
 use serde::Serialize;
-
 use sim_bridge::{Sim, SimError, compensated_targets_rad, tilt_rad};
 
 /// A sole carrying more than this share of the weight is standing (for the slip measure).
