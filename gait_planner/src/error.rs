@@ -74,6 +74,18 @@ pub enum GaitError {
         /// The previous time.
         previous_s: f64,
     },
+    /// A step limit set by hand whose check walk fails.
+    #[error(
+        "gait parameter `{key}` = {value_m} m refused: the check walk at that step fails: {cause}"
+    )]
+    StepLimit {
+        /// The parameter.
+        key: &'static str,
+        /// Its value (m).
+        value_m: f64,
+        /// Why the check walk failed (in the message too).
+        cause: Box<GaitError>,
+    },
     /// A walk request with a bad value.
     #[error("walk request refused: {0}")]
     Request(String),

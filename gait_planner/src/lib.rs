@@ -19,9 +19,11 @@ mod error;
 pub mod params;
 mod phase;
 mod planner;
+mod stride;
 pub mod trajectory;
 
 pub use error::GaitError;
 pub use params::{GaitConfig, GaitParams};
 pub use phase::{PhaseKind, Support, WalkRequest};
 pub use planner::{GaitPlanner, GaitSample, plan_walk};
+pub use stride::{Stride, StrideCommand, Velocity};

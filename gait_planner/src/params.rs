@@ -23,6 +23,12 @@ pub mod auto {
     pub const HIP_DROP_PER_LEG: f64 = 0.85;
     /// Minimum CoM margin, as a fraction of the narrower sole side.
     pub const MARGIN_PER_SOLE_WIDTH: f64 = 1.0 / 6.0;
+    /// Longest backward step, as a fraction of the forward step length.
+    pub const BACK_STEP_PER_STEP: f64 = 1.0;
+    /// Longest side step (sideways travel of the body per step), as a fraction of the leg.
+    pub const SIDE_STEP_PER_LEG: f64 = 0.1;
+    /// An auto step limit whose check walk fails is lowered by this many bisections.
+    pub const BISECTIONS: u32 = 6;
 }
 
 /// The parameters as written in the YAML file. Lengths left at 0 are derived from the robot
@@ -33,6 +39,14 @@ pub struct GaitParams {
     /// How far the front foot ends ahead of the other after a step (m); the swing foot of a
     /// full step travels twice this (the paper's s). 0 = auto.
     pub step_length_m: f64,
+    /// Longest backward step (m): how far the swing foot may land behind the stance foot
+    /// when `cmd_vel` asks to walk backward. 0 = auto (the forward step length, lowered
+    /// until the check walk passes).
+    pub back_step_length_m: f64,
+    /// Longest side step (m): how far the body may travel sideways per step. The foot on
+    /// the side of travel opens by twice this, the other closes back to the standing
+    /// width. 0 = auto (0.1 x leg, lowered until the check walk passes).
+    pub side_step_m: f64,
     /// Duration of each swing (half and full steps) (s).
     pub step_duration_s: f64,
     /// Duration of each CoM shift and of the final centring (s).
@@ -58,6 +72,8 @@ impl Default for GaitParams {
     fn default() -> Self {
         Self {
             step_length_m: 0.0,
+            back_step_length_m: 0.0,
+            side_step_m: 0.0,
             step_duration_s: 1.0,
             shift_duration_s: 2.0,
             crouch_duration_s: 1.0,
@@ -79,6 +95,12 @@ impl GaitParams {
     /// One control period (s).
     pub fn dt_s(&self) -> f64 {
         1.0 / self.control_rate_hz
+    }
+
+    /// Time of one step: a CoM shift and a swing (s). A stride per step over this is the
+    /// walking speed.
+    pub fn step_period_s(&self) -> f64 {
+        self.shift_duration_s + self.step_duration_s
     }
 }
 
@@ -192,13 +214,28 @@ impl GaitParams {
             .min(right.sole.length_m());
         let hip_lo = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + 0.5 * leg;
         let hip_hi = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + leg;
+        let step_length_m = auto_or(
+            "step_length_m",
+            self.step_length_m,
+            auto::STEP_LENGTH_PER_LEG * leg,
+            0.0,
+            0.6 * leg,
+        )?;
         Ok(GaitParams {
-            step_length_m: auto_or(
-                "step_length_m",
-                self.step_length_m,
-                auto::STEP_LENGTH_PER_LEG * leg,
+            step_length_m,
+            back_step_length_m: auto_or(
+                "back_step_length_m",
+                self.back_step_length_m,
+                auto::BACK_STEP_PER_STEP * step_length_m,
                 0.0,
                 0.6 * leg,
+            )?,
+            side_step_m: auto_or(
+                "side_step_m",
+                self.side_step_m,
+                auto::SIDE_STEP_PER_LEG * leg,
+                0.0,
+                0.3 * leg,
             )?,
             step_duration_s: check("step_duration_s", self.step_duration_s, 0.1, 60.0, "s")?,
             shift_duration_s: check("shift_duration_s", self.shift_duration_s, 0.1, 60.0, "s")?,

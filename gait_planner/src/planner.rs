@@ -12,6 +12,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use crate::error::GaitError;
 use crate::params::{GaitConfig, GaitParams};
 use crate::phase::{PhaseKind, Support, WalkRequest};
+use crate::stride::Stride;
 use crate::trajectory::{min_jerk, swing_advance, swing_height};
 
 /// Times closer than this are the same instant (s); far below any control period.
@@ -126,6 +127,11 @@ pub struct GaitPlanner {
     crouched: bool,
     /// Foot to swing next.
     next_swing: Side,
+    /// What the next swing does; taken at the start of each swing.
+    stride: Stride,
+    /// Sideways distance between the ankles of the initial pose (m): the feet never come
+    /// closer.
+    stance_width_m: f64,
     swings_done: u32,
     /// The base (x, y) of the last solved tick: the warm start of the next solve.
     base_xy: Xy,
@@ -149,15 +155,130 @@ impl GaitPlanner {
     /// give a walk whose CoM stays inside the support polygon with the configured margin,
     /// within reach and joint limits, at every tick of a check walk that has every kind of
     /// phase. Refuses otherwise, naming the phase and the shortfall.
+    ///
+    /// The walk is checked at the forward step, at the longest backward step, and at the
+    /// longest side step to either side alone and together with the longest forward or
+    /// backward step (at 1/√2 of each). A step limit left at 0 (auto) whose check fails is
+    /// lowered until it passes; one set by hand is refused.
     pub fn new(model: BipedModel, params: GaitParams) -> Result<Self, GaitError> {
         let cfg = params.resolve(&model)?;
-        let planner = Self::unchecked(model, cfg);
-        planner.check_walk()?;
+        let mut planner = Self::unchecked(model, cfg);
+        planner.check_limits(&params)?;
         Ok(planner)
+    }
+
+    /// The check walks of [`Self::new`], settling the auto step limits.
+    fn check_limits(&mut self, params: &GaitParams) -> Result<(), GaitError> {
+        self.check_walk(Stride::forward(self.cfg.step_length_m))?;
+        let back = self.settle_limit(
+            "back_step_length_m",
+            params.back_step_length_m == 0.0,
+            self.cfg.back_step_length_m,
+            |v| vec![Stride::forward(-v)],
+        )?;
+        self.cfg.back_step_length_m = back;
+        let (fwd, diag) = (self.cfg.step_length_m, std::f64::consts::FRAC_1_SQRT_2);
+        let side = self.settle_limit(
+            "side_step_m",
+            params.side_step_m == 0.0,
+            self.cfg.side_step_m,
+            |v| {
+                [1.0, -1.0]
+                    .into_iter()
+                    .flat_map(|sign| {
+                        let left_m = sign * v;
+                        [(0.0, 1.0), (fwd, diag), (-back, diag)].map(|(x, k)| Stride {
+                            forward_m: x * k,
+                            left_m: left_m * k,
+                            turn_rad: 0.0,
+                        })
+                    })
+                    .collect()
+            },
+        )?;
+        self.cfg.side_step_m = side;
+        self.stride = Stride::forward(self.cfg.step_length_m);
+        Ok(())
+    }
+
+    /// A step limit whose check walks all pass: the value itself, or for an auto value
+    /// the largest passing one below it, found by bisection to 1/64 of it (0 when none
+    /// passes: that way is not walked).
+    fn settle_limit(
+        &self,
+        key: &'static str,
+        auto: bool,
+        value_m: f64,
+        strides: impl Fn(f64) -> Vec<Stride>,
+    ) -> Result<f64, GaitError> {
+        let fails = |v: f64| {
+            strides(v)
+                .into_iter()
+                .find_map(|st| self.check_walk(st).err())
+        };
+        match fails(value_m) {
+            None => Ok(value_m),
+            Some(e) if !auto => Err(GaitError::StepLimit {
+                key,
+                value_m,
+                cause: Box::new(e),
+            }),
+            Some(_) => {
+                let (mut lo, mut hi) = (0.0, value_m);
+                for _ in 0..crate::params::auto::BISECTIONS {
+                    let mid = (lo + hi) / 2.0;
+                    if fails(mid).is_none() {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                Ok(lo)
+            }
+        }
+    }
+
+    /// The stride of the next swings (see [`Stride`]); the walk is unchanged until then.
+    /// Refused, naming the value, beyond the configured step limits or with a turn.
+    pub fn set_stride(&mut self, stride: Stride) -> Result<(), GaitError> {
+        let c = &self.cfg;
+        // Within a part per billion: a velocity scaled onto a limit lands on it.
+        let within = |v: f64, lo: f64, hi: f64| {
+            v.is_finite() && v >= lo - 1e-9 * lo.abs() && v <= hi + 1e-9 * hi.abs()
+        };
+        for (field, v, lo, hi) in [
+            (
+                "forward_m",
+                stride.forward_m,
+                -c.back_step_length_m,
+                c.step_length_m,
+            ),
+            ("left_m", stride.left_m, -c.side_step_m, c.side_step_m),
+        ] {
+            if !within(v, lo, hi) {
+                return Err(GaitError::Request(format!(
+                    "stride {field} = {v} m is outside [{lo}, {hi}] m (step_length_m, back_step_length_m, side_step_m)"
+                )));
+            }
+        }
+        if stride.turn_rad != 0.0 {
+            return Err(GaitError::Request(format!(
+                "stride turn_rad = {} rad: turning is not walked yet",
+                stride.turn_rad
+            )));
+        }
+        self.stride = stride;
+        Ok(())
+    }
+
+    /// The stride the next swing takes.
+    pub fn stride(&self) -> Stride {
+        self.stride
     }
 
     fn unchecked(model: BipedModel, cfg: GaitConfig) -> Self {
         let feet = Self::initial_feet(&model);
+        let stance_width_m = (feet[0].y - feet[1].y).abs();
         let z_stand = Self::stand_base_z(&model);
         let base_xy = Self::initial_base_xy(&model);
         let phase = Phase {
@@ -177,6 +298,8 @@ impl GaitPlanner {
         };
         Self {
             next_swing: cfg.first_foot,
+            stride: Stride::forward(cfg.step_length_m),
+            stance_width_m,
             model,
             cfg,
             phase,
@@ -222,9 +345,11 @@ impl GaitPlanner {
                 ),
             });
         }
-        Self::unchecked(self.model.clone(), cfg.clone()).check_walk()?;
-        self.next_swing = cfg.first_foot;
-        self.cfg = cfg;
+        let mut fresh = Self::unchecked(self.model.clone(), cfg);
+        fresh.check_limits(&params)?;
+        self.next_swing = fresh.cfg.first_foot;
+        self.stride = fresh.stride;
+        self.cfg = fresh.cfg;
         Ok(())
     }
 
@@ -403,6 +528,23 @@ impl GaitPlanner {
         Ok(best)
     }
 
+    /// Where the swing foot lands for a stride: `forward_m` ahead of the stance foot, at
+    /// the standing width from it, plus twice `left_m` when it swings towards the side of
+    /// travel (the other foot closes back to the standing width).
+    fn landing(&self, feet: &[Point3<f64>; 2], swing: Side, stride: Stride) -> Point3<f64> {
+        let stance = feet[swing.other().index()];
+        let open = if stride.left_m * swing.sign() > 0.0 {
+            2.0 * stride.left_m.abs()
+        } else {
+            0.0
+        };
+        Point3::new(
+            stance.x + stride.forward_m,
+            stance.y + swing.sign() * (self.stance_width_m + open),
+            feet[swing.index()].z,
+        )
+    }
+
     fn swing_feet(&self, p: f64) -> [Point3<f64>; 2] {
         let ph = &self.phase;
         let (from, to) = (ph.feet_from, ph.feet_to);
@@ -526,6 +668,15 @@ impl GaitPlanner {
                         Some((PhaseKind::Center, None))
                     }
                 } else {
+                    // Feet level: a side step starts with the foot on the side of travel,
+                    // the only one that can open.
+                    if self.stride.left_m != 0.0 {
+                        self.next_swing = if self.stride.left_m > 0.0 {
+                            Side::Left
+                        } else {
+                            Side::Right
+                        };
+                    }
                     Some((PhaseKind::Shift, Some(self.next_swing.other())))
                 }
             }
@@ -548,6 +699,8 @@ impl GaitPlanner {
             if ended.kind == PhaseKind::Rise {
                 self.crouched = false;
             }
+            // The next walk starts from level feet: with a half step.
+            self.swings_done = 0;
             self.stop = false;
             self.remaining = Remaining::Swings(0);
             self.phase = Phase {
@@ -620,12 +773,12 @@ impl GaitPlanner {
             PhaseKind::HalfStep | PhaseKind::Step | PhaseKind::FinalHalfStep => {
                 let swing = side.unwrap_or(Side::Left);
                 let stance = swing.other();
-                let ahead = match kind {
-                    PhaseKind::FinalHalfStep => 0.0,
-                    _ => cfg.step_length_m,
+                let stride = match kind {
+                    PhaseKind::FinalHalfStep => Stride::default(),
+                    _ => self.stride,
                 };
                 let mut to = feet;
-                to[swing.index()].x = feet[stance.index()].x + ahead;
+                to[swing.index()] = self.landing(&feet, swing, stride);
                 phase.feet_to = to;
                 phase.duration_s = cfg.step_duration_s;
                 phase.step_index = ended.step_index + 1;
@@ -656,8 +809,9 @@ impl GaitPlanner {
     /// Runs a whole check walk with every kind of phase on a copy of this planner and
     /// refuses parameters that leave the CoM margin below the minimum, need an unreachable
     /// ankle position or a joint limit, or move a joint faster than its limit.
-    fn check_walk(&self) -> Result<(), GaitError> {
+    fn check_walk(&self, stride: Stride) -> Result<(), GaitError> {
         let mut check = Self::unchecked(self.model.clone(), self.cfg.clone());
+        check.stride = stride;
         let samples = check.plan(WalkRequest::Steps(3))?;
         let dt = self.cfg.dt_s();
         let robot = self.model.robot();
