@@ -164,6 +164,11 @@ enum Command {
         steps: u32,
         #[command(flatten)]
         robot: RobotArgs,
+        /// Walk at this velocity instead of straight ahead at the full step: `vx,vy,wz` as
+        /// cmd_vel's Twist has them (m/s forward, m/s left, rad/s counter-clockwise; REP-103).
+        /// Scaled into the step limits (with a warning) as the gait_planner node does.
+        #[arg(long, value_name = "VX,VY,WZ", allow_hyphen_values = true, value_parser = plan::parse_twist)]
+        twist: Option<gait_planner::Velocity>,
         /// Where to write the CSV.
         #[arg(long, value_name = "FILE")]
         csv: PathBuf,
@@ -387,6 +392,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Plan {
             steps,
             robot,
+            twist,
             csv,
             plots,
             no_plots,
@@ -394,6 +400,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let model = load_model(&robot)?;
             let params = load_params(&robot)?;
             let mut planner = GaitPlanner::new(model, params)?;
+            if let Some(v) = twist {
+                let cmd = planner.stride_for(v).context("--twist")?;
+                if let Some(l) = cmd.limited_to {
+                    eprintln!(
+                        "biped: warning: --twist {},{},{} is beyond the step limits; walking {:.4},{:.4},{:.4}",
+                        v.x_m_s, v.y_m_s, v.yaw_rad_s, l.x_m_s, l.y_m_s, l.yaw_rad_s
+                    );
+                }
+                planner.set_stride(cmd.stride).context("--twist")?;
+            }
             let samples = planner.plan(WalkRequest::Steps(steps))?;
             plan::write_csv_file(&csv, planner.model().robot(), &samples)?;
             let mut summary = plan::PlanSummary::of(&samples);
@@ -406,14 +422,17 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     .extend(plots::write_plots(&dir, &planner, &samples)?);
             }
             let c = planner.config();
+            let stride = planner.stride();
             println!(
-                "planned {steps} steps of {:.3} m for {}: {} ticks at {} Hz, {:.2} s, base moved {:.3} m, minimum CoM margin {:.4} m (required {:.4} m)",
-                c.step_length_m,
+                "planned {steps} steps of {:.3} m forward, {:.3} m left for {}: {} ticks at {} Hz, {:.2} s, base moved {:.3} m forward, {:.3} m left, minimum CoM margin {:.4} m (required {:.4} m)",
+                stride.forward_m,
+                stride.left_m,
                 planner.model().robot().name(),
                 summary.rows,
                 c.control_rate_hz,
                 summary.duration_s,
                 summary.distance_m,
+                summary.left_m,
                 summary.min_margin_m,
                 c.min_com_margin_m
             );

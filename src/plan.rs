@@ -90,6 +90,8 @@ pub struct PlanSummary {
     pub duration_s: f64,
     /// Forward distance of the base from the first to the last tick (m).
     pub distance_m: f64,
+    /// Leftward distance of the base from the first to the last tick (m).
+    pub left_m: f64,
     /// Smallest CoM margin (m).
     pub min_margin_m: f64,
     /// Files written.
@@ -107,6 +109,10 @@ impl PlanSummary {
                 (Some(a), Some(b)) => b.base_world.translation.x - a.base_world.translation.x,
                 _ => 0.0,
             },
+            left_m: match (first, last) {
+                (Some(a), Some(b)) => b.base_world.translation.y - a.base_world.translation.y,
+                _ => 0.0,
+            },
             min_margin_m: samples
                 .iter()
                 .map(|s| s.margin_m)
@@ -114,4 +120,26 @@ impl PlanSummary {
             files: Vec::new(),
         }
     }
+}
+
+/// Parses `--twist vx,vy,wz`: three finite numbers, m/s forward, m/s left, rad/s
+/// counter-clockwise.
+pub fn parse_twist(text: &str) -> Result<gait_planner::Velocity, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let [x, y, z] = parts.as_slice() else {
+        return Err(format!(
+            "`{text}`: expected three numbers vx,vy,wz (m/s, m/s, rad/s)"
+        ));
+    };
+    let num = |name: &str, v: &str| -> Result<f64, String> {
+        match v.parse::<f64>() {
+            Ok(n) if n.is_finite() => Ok(n),
+            _ => Err(format!("{name} = `{v}` is not a finite number")),
+        }
+    };
+    Ok(gait_planner::Velocity {
+        x_m_s: num("vx", x)?,
+        y_m_s: num("vy", y)?,
+        yaw_rad_s: num("wz", z)?,
+    })
 }

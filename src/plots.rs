@@ -7,7 +7,7 @@
 //!   stance), with the floor path of the whole-body CoM (the zig-zag from foot to foot) and
 //!   the path of the pelvis over them, start and end marked.
 //! - `swing_curve.svg`: the swing-ankle curve of the paper's Fig. 17 for the first full step
-//!   of the plan: the swing ankle's height above the floor against its forward travel since
+//!   of the plan: the swing ankle's height above the floor against its travel (along the step) since
 //!   lift-off (mm, equal scales), as planned tick by tick, with the closed form of
 //!   [`gait_planner::trajectory`] drawn over it so the two can be seen to coincide.
 //! - `joint_angles.svg`: the leg joint angles (degrees) over time, one panel per joint role
@@ -220,10 +220,12 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
     let height_px = TITLE_H_PX + 2 * MARGIN_PX + X_LABELS_PX + plot_h_px;
 
     let cfg = planner.config();
+    let stride = planner.stride();
     let title = format!(
-        "Top view: {} of {:.0} mm, minimum CoM margin {:.1} mm (required {:.1} mm)",
+        "Top view: {} of {:.0} mm forward, {:.0} mm left, minimum CoM margin {:.1} mm (required {:.1} mm)",
         steps_text(step_count(samples)),
-        cfg.step_length_m * 1e3,
+        stride.forward_m * 1e3,
+        stride.left_m * 1e3,
         min_margin_m(samples) * 1e3,
         cfg.min_com_margin_m * 1e3
     );
@@ -351,7 +353,7 @@ struct Swing {
     kind: PhaseKind,
     side: Side,
     step_index: u32,
-    /// (forward travel since lift-off, height above the floor) of each tick, from the tick
+    /// (travel along the step since lift-off, height above the floor) of each tick, from the tick
     /// before lift-off to touch-down (mm).
     ticks_mm: Vec<(f64, f64)>,
     /// Forward travel from lift-off to touch-down (mm).
@@ -382,13 +384,20 @@ fn first_swing(samples: &[GaitSample]) -> Option<Swing> {
         // The tick before the phase ends the previous phase with the foot still down.
         let with_lift_off = &samples[start.saturating_sub(1)..start + len];
         let (first, last) = (with_lift_off.first()?, with_lift_off.last()?);
-        let x0_m = first.ankles_world_m[side.index()].x;
+        let a0 = first.ankles_world_m[side.index()];
         let z0_m = floor_z_m[side.index()];
+        // Horizontal travel along the step's direction (forward, back or sideways).
+        let travel = (last.ankles_world_m[side.index()] - a0).xy();
+        let along = if travel.norm() > 1e-9 {
+            travel.normalize()
+        } else {
+            nalgebra::Vector2::x()
+        };
         let ticks_mm = with_lift_off
             .iter()
             .map(|s| {
                 let a = s.ankles_world_m[side.index()];
-                ((a.x - x0_m) * 1e3, (a.z - z0_m) * 1e3)
+                ((a - a0).xy().dot(&along) * 1e3, (a.z - z0_m) * 1e3)
             })
             .collect();
         Some(Swing {
@@ -396,7 +405,7 @@ fn first_swing(samples: &[GaitSample]) -> Option<Swing> {
             side,
             step_index: phase.first()?.step_index,
             ticks_mm,
-            travel_mm: (last.ankles_world_m[side.index()].x - x0_m) * 1e3,
+            travel_mm: travel.norm() * 1e3,
             duration_s: last.t_s - first.t_s,
         })
     })
@@ -435,7 +444,7 @@ fn swing_curve(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<
         swing.side
     );
     let subtitle = format!(
-        "swing {}: travel L = {:.1} mm, foot lift h = {:.1} mm, {:.2} s; height against forward travel, equal scales",
+        "swing {}: travel L = {:.1} mm, foot lift h = {:.1} mm, {:.2} s; height against travel, equal scales",
         swing.step_index, swing.travel_mm, lift_mm, swing.duration_s
     );
     let colour = side_colour(swing.side);
@@ -462,7 +471,7 @@ fn swing_curve(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<
             .build_cartesian_2d(window.x.clone(), window.y.clone())?;
         chart
             .configure_mesh()
-            .x_desc("forward travel since lift-off, x − x₀ (mm)")
+            .x_desc("travel along the step since lift-off (mm)")
             .y_desc("height above the floor, z − z₀ (mm)")
             .x_label_formatter(&|v| format!("{v:.0}"))
             .y_label_formatter(&|v| format!("{v:.0}"))

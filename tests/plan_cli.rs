@@ -319,3 +319,80 @@ fn bad_input_gets_a_clear_error() {
     fails_naming(&["plan", "--steps", "0", "--csv", csv], &["--steps"]);
     assert!(!Path::new(csv).exists(), "nothing written on error");
 }
+
+/// `--twist` walks sideways and backward: the feet end where the step limits of the default
+/// robot put them (side step 0.1 x leg = 18 mm per step, hand-computed; the back step is a
+/// velocity x the 3 s step period), pictures and all; a turn or a NaN is refused by name.
+#[test]
+fn twist_walks_sideways_and_backward() {
+    let dir = tmp("twist");
+    let side = dir.join("side/plan.csv");
+    let out = biped(&[
+        "plan",
+        "--steps",
+        "4",
+        "--twist",
+        "0,0.006,0",
+        "--csv",
+        side.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    // Exactly on the side limit: no warning about scaling.
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("warning"));
+    let csv = Csv::read(&side);
+    let (first, last) = (&csv.rows[0], csv.rows.last().unwrap());
+    for col in ["l_ankle_y", "r_ankle_y"] {
+        let moved = csv.num(last, col) - csv.num(first, col);
+        assert!((moved - 4.0 * 0.018).abs() < 1e-12, "{col} moved {moved}");
+    }
+    for col in ["l_ankle_x", "r_ankle_x"] {
+        assert!((csv.num(last, col) - csv.num(first, col)).abs() < 1e-12);
+    }
+    assert!(dir.join("side/top_view.svg").exists());
+
+    let back = dir.join("back/plan.csv");
+    let out = biped(&[
+        "plan",
+        "--steps",
+        "3",
+        "--twist=-0.01,0,0",
+        "--csv",
+        back.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let csv = Csv::read(&back);
+    let last = csv.rows.last().unwrap();
+    for col in ["l_ankle_x", "r_ankle_x"] {
+        assert!((csv.num(last, col) + 0.09).abs() < 1e-12, "{col}");
+    }
+    // Beyond the limit: scaled, with a warning naming what is walked.
+    let out = biped(&[
+        "plan",
+        "--steps",
+        "1",
+        "--twist",
+        "0,0.5,0",
+        "--csv",
+        dir.join("fast/plan.csv").to_str().unwrap(),
+        "--no-plots",
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("beyond the step limits") && err.contains("0.0060"),
+        "{err}"
+    );
+
+    let csv = dir.join("x.csv");
+    let csv = csv.to_str().unwrap();
+    fails_naming(
+        &["plan", "--twist", "0,0,0.2", "--csv", csv],
+        &["angular.z = 0.2", "no hip yaw"],
+    );
+    fails_naming(
+        &["plan", "--twist", "0,nan,0", "--csv", csv],
+        &["vy", "nan"],
+    );
+    fails_naming(&["plan", "--twist", "0,1", "--csv", csv], &["vx,vy,wz"]);
+    assert!(!Path::new(csv).exists(), "nothing written on error");
+}

@@ -12,7 +12,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use crate::error::GaitError;
 use crate::params::{GaitConfig, GaitParams};
 use crate::phase::{PhaseKind, Support, WalkRequest};
-use crate::stride::Stride;
+use crate::stride::{Stride, StrideCommand, Velocity};
 use crate::trajectory::{min_jerk, swing_advance, swing_height};
 
 /// Times closer than this are the same instant (s); far below any control period.
@@ -274,6 +274,13 @@ impl GaitPlanner {
     /// The stride the next swing takes.
     pub fn stride(&self) -> Stride {
         self.stride
+    }
+
+    /// A velocity as a stride of this robot, within its step limits: see
+    /// [`GaitConfig::stride_for`].
+    pub fn stride_for(&self, v: Velocity) -> Result<StrideCommand, GaitError> {
+        let has_yaw = Side::BOTH.iter().all(|&s| self.model.leg(s).has_yaw());
+        self.cfg.stride_for(v, has_yaw)
     }
 
     fn unchecked(model: BipedModel, cfg: GaitConfig) -> Self {

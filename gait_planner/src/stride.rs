@@ -108,7 +108,9 @@ impl GaitConfig {
             ratio(want.forward_m, x_max),
             ratio(want.left_m, self.side_step_m),
         );
-        let scale = rx.hypot(ry).max(1.0);
+        // A command on a limit stays on it (not a part per billion beyond, from rounding).
+        let reach = rx.hypot(ry);
+        let scale = if reach <= 1.0 + 1e-9 { 1.0 } else { reach };
         let stride = Stride {
             forward_m: axis(want.forward_m, x_max) / scale,
             left_m: axis(want.left_m, self.side_step_m) / scale,
