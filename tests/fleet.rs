@@ -125,7 +125,7 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     assert!(rosout_has(
         &v,
         "gait_planner",
-        &["linear.x = -0.1", "backward"]
+        &["angular.z = 0.5", "no hip yaw"]
     ));
     assert!(rosout_has(&v, "gait_planner", &["step_length = -1"]));
     assert!(rosout_has(&v, "gait_planner", &["step_duration = inf"]));
@@ -176,6 +176,62 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
             "{node}: {}",
             v["exits"][node]["stderr_tail"]
         );
+    }
+}
+
+/// A teleop over /cmd_vel: Twists at 10 Hz side-stepping left (12 mm per step at
+/// 0.004 m/s), then none. The walk ends by itself (cmd_vel_timeout_s), the feet together at
+/// the standing width, and the pelvis moved left by 24 mm per left-foot swing (the foot on
+/// the side of travel opens by twice the step; the other closes behind it).
+#[test]
+fn an_rclpy_teleop_side_steps_the_robot_and_the_walk_ends_when_it_stops() {
+    let v = peer("teleop", 64);
+    assert_eq!(v["nodes_seen"], true);
+    assert_eq!(v["matched"], true);
+    assert_eq!(v["flowing"], true, "{}", v["flow_diag"]);
+    assert_eq!(
+        v["finished"], true,
+        "the walk did not end after the Twists stopped"
+    );
+    assert!(
+        rosout_has(
+            &v,
+            "gait_planner",
+            &["no command for 0.5 s", "ending the walk"]
+        ),
+        "no timeout message"
+    );
+    let phases = v["phases"].as_array().unwrap();
+    let mut swings = std::collections::BTreeSet::new();
+    for p in phases {
+        let kind = p["phase"].as_str().unwrap();
+        if matches!(kind, "half_step" | "step") {
+            swings.insert((
+                p["step"].as_u64().unwrap(),
+                p["support"].as_str().unwrap().to_owned(),
+            ));
+        }
+    }
+    // The left foot swings first (the side of travel), with the right foot carrying.
+    let left_swings = swings.iter().filter(|(_, sup)| sup == "right").count();
+    assert!(left_swings >= 2, "swings: {swings:?}");
+    assert_eq!(swings.first().unwrap().1, "right", "{swings:?}");
+    let pelvis = v["pelvis"].as_array().unwrap();
+    let y = |p: &Value| p["y"].as_f64().unwrap();
+    let x = |p: &Value| p["x"].as_f64().unwrap();
+    let (first, last) = (&pelvis[0], pelvis.last().unwrap());
+    let moved = y(last) - y(first);
+    assert!(
+        (moved - 0.024 * left_swings as f64).abs() < 1e-3,
+        "pelvis moved {moved} m left after {left_swings} left swings"
+    );
+    assert!(
+        (x(last) - x(first)).abs() < 0.01,
+        "forward drift {}",
+        x(last) - x(first)
+    );
+    for node in ["gait_planner", "ik_solver", "joint_bridge"] {
+        assert_eq!(v["exits"][node]["returncode"], 0, "{node}");
     }
 }
 

@@ -20,6 +20,7 @@ pub mod params;
 mod phase;
 mod planner;
 mod stride;
+pub mod teleop;
 pub mod trajectory;
 
 pub use error::GaitError;
@@ -27,3 +28,4 @@ pub use params::{GaitConfig, GaitParams};
 pub use phase::{PhaseKind, Support, WalkRequest};
 pub use planner::{GaitPlanner, GaitSample, plan_walk};
 pub use stride::{Stride, StrideCommand, Velocity};
+pub use teleop::VelocityFollower;

@@ -66,6 +66,10 @@ pub struct GaitParams {
     pub first_foot: Side,
     /// Rise back to straight legs at the end of a walk.
     pub rise_at_end: bool,
+    /// A walk driven by velocity commands (`cmd_vel`) ends, with its closing half step at
+    /// the next point where the feet can come together, when no command has come for this
+    /// long (s): a teleop that dies does not leave the robot walking.
+    pub cmd_vel_timeout_s: f64,
 }
 
 impl Default for GaitParams {
@@ -83,6 +87,7 @@ impl Default for GaitParams {
             min_com_margin_m: 0.0,
             first_foot: Side::Left,
             rise_at_end: false,
+            cmd_vel_timeout_s: 0.5,
         }
     }
 }
@@ -264,6 +269,13 @@ impl GaitParams {
             )?,
             first_foot: self.first_foot,
             rise_at_end: self.rise_at_end,
+            cmd_vel_timeout_s: check(
+                "cmd_vel_timeout_s",
+                self.cmd_vel_timeout_s,
+                0.01,
+                3600.0,
+                "s",
+            )?,
         })
     }
 }

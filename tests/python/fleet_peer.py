@@ -4,7 +4,7 @@ Run inside a private network namespace (the Rust test does it). It starts the fl
 a ROS user would (`ros2 topic pub`, `ros2 param get/set`, kill a node, Ctrl-C the launcher)
 and prints what it saw as one JSON object on stdout. The assertions are the Rust test's.
 
-    python fleet_peer.py walk|watchdog|launch|sim BIN_DIR [PARAMS_YAML]
+    python fleet_peer.py walk|teleop|watchdog|launch|sim BIN_DIR [PARAMS_YAML]
 """
 
 import json
@@ -22,7 +22,7 @@ from rcl_interfaces.msg import Log, Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
 from geometry_msgs.msg import Twist
 from sensor_msgs.msg import JointState
-from biped_msgs.msg import GaitPhase, WalkCommand
+from biped_msgs.msg import AnkleTargets, GaitPhase, WalkCommand
 
 NODES = ["gait_planner", "ik_solver", "joint_bridge"]
 
@@ -218,9 +218,10 @@ def scenario_walk(bin_dir, params):
     bad = Twist()
     bad.linear.x = math.nan
     peer.cmd_vel_pub.publish(bad)
-    back = Twist()
-    back.linear.x = -0.1
-    peer.cmd_vel_pub.publish(back)
+    turn = Twist()
+    turn.linear.x = 0.01
+    turn.angular.z = 0.5
+    peer.cmd_vel_pub.publish(turn)
     peer.walk(3, step_length=-1.0)
     peer.walk(3, step_duration=math.inf)
     out["set_during_walk"] = peer.set_double("gait_planner", "step_duration_s", 0.8)
@@ -232,6 +233,31 @@ def scenario_walk(bin_dir, params):
     peer.spin(0.3)
     out.update(phases=peer.phases, commands=peer.commands, rosout=peer.rosout,
                states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None)
+    out["exits"] = stop_nodes(procs)
+    return out
+
+
+def scenario_teleop(bin_dir, params):
+    """A teleop: Twists at 10 Hz to side-step left, then the teleop dies (no more Twists):
+    the walk must end by itself (cmd_vel_timeout_s) with the feet together."""
+    procs = start_nodes(bin_dir, params)
+    peer = Peer()
+    pelvis = []
+    peer.node.create_subscription(AnkleTargets, "/gait/ankle_targets", lambda m: pelvis.append(
+        {"stamp": stamp_ns(m.header), "x": m.pelvis.x, "y": m.pelvis.y}),
+        QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
+    out = {"nodes_seen": peer.wait_for_nodes(), "matched": peer.wait_for_subscribers(peer.cmd_vel_pub)}
+    out["flowing"] = peer.wait_for_flow()
+    out["flow_diag"] = getattr(peer, "flow_diag", None)
+    side = Twist()
+    side.linear.y = 0.004
+    end = time.monotonic() + 14.0
+    while time.monotonic() < end:
+        peer.cmd_vel_pub.publish(side)
+        peer.spin(0.1)
+    out["finished"] = peer.spin(40.0, peer.idle_after_walking)
+    peer.spin(0.5)
+    out.update(phases=peer.phases, pelvis=pelvis, rosout=peer.rosout)
     out["exits"] = stop_nodes(procs)
     return out
 
@@ -378,7 +404,8 @@ def scenario_sim(bin_dir, params):
 def main():
     scenario, bin_dir = sys.argv[1], sys.argv[2]
     params = sys.argv[3] if len(sys.argv) > 3 else None
-    result = {"walk": scenario_walk, "watchdog": scenario_watchdog, "launch": scenario_launch,
+    result = {"walk": scenario_walk, "teleop": scenario_teleop, "watchdog": scenario_watchdog,
+              "launch": scenario_launch,
               "sim": scenario_sim}[scenario](bin_dir, params)
     json.dump(result, sys.stdout)
 

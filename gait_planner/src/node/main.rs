@@ -1,8 +1,10 @@
 //! The `gait_planner` ROS 2 node: a thin wrapper over the gait_planner library.
 //!
-//! - subscribes `cmd_vel` (geometry_msgs/msg/Twist: `linear.x` > 0 walks until stopped at
-//!   that speed, 0 stops at the next feet-together point) and `walk_command`
-//!   (biped_msgs/msg/WalkCommand);
+//! - subscribes `cmd_vel` (geometry_msgs/msg/Twist, REP-103: `linear.x` forward or back,
+//!   `linear.y` sideways, walked as strides within the step limits, a new one taken at the
+//!   next swing; a zero Twist, or none for `cmd_vel_timeout_s`, ends the walk at the next
+//!   feet-together point: [`gait_planner::teleop`]) and `walk_command`
+//!   (biped_msgs/msg/WalkCommand: N steps straight ahead);
 //! - publishes `gait/phase` (biped_msgs/msg/GaitPhase) and `gait/ankle_targets`
 //!   (biped_msgs/msg/AnkleTargets) at `control_rate_hz`, idle or walking.
 //!
@@ -23,7 +25,9 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{AnkleTargets, GaitPhase, Header, Point, Twist, WalkCommand};
-use gait_planner::{GaitParams, GaitPlanner, GaitSample, PhaseKind, WalkRequest};
+use gait_planner::{
+    GaitParams, GaitPlanner, GaitSample, PhaseKind, Stride, Velocity, VelocityFollower, WalkRequest,
+};
 use ik_solver::BipedModel;
 use node_runtime::{NodeSetup, RosNode, TickSource};
 use ros2_client::ParameterValue;
@@ -73,19 +77,16 @@ fn declared(
 
 /// What the node does with a command; pure, so every case is the same whoever sends it.
 struct Commands {
-    reported_turning: bool,
+    follower: VelocityFollower,
 }
 
 impl Commands {
-    fn cmd_vel(&mut self, planner: &mut GaitPlanner, tw: &Twist, base: &GaitParams) -> Vec<String> {
+    fn cmd_vel(&mut self, planner: &mut GaitPlanner, tw: &Twist, now_s: f64) -> Vec<String> {
         let mut warnings = Vec::new();
         for (field, v) in [
-            ("linear.x", tw.linear.x),
-            ("linear.y", tw.linear.y),
             ("linear.z", tw.linear.z),
             ("angular.x", tw.angular.x),
             ("angular.y", tw.angular.y),
-            ("angular.z", tw.angular.z),
         ] {
             if !v.is_finite() {
                 warnings.push(format!(
@@ -94,47 +95,12 @@ impl Commands {
                 return warnings;
             }
         }
-        if (tw.linear.y != 0.0 || tw.angular.z != 0.0) && !self.reported_turning {
-            self.reported_turning = true;
-            warnings.push(format!(
-                "cmd_vel: linear.y = {} and angular.z = {} ignored: side steps and turning are not supported yet (reported once)",
-                tw.linear.y, tw.angular.z
-            ));
-        }
-        let v = tw.linear.x;
-        if v < 0.0 {
-            warnings.push(format!(
-                "cmd_vel refused: linear.x = {v} m/s: walking backward is not supported"
-            ));
-            return warnings;
-        }
-        if v == 0.0 {
-            planner.request(WalkRequest::Stop);
-            return warnings;
-        }
-        if planner.phase() != PhaseKind::Idle {
-            planner.request(WalkRequest::UntilStop);
-            return warnings;
-        }
-        // One step (a swing and a shift) advances one step length.
-        let cfg = planner.config().clone();
-        let max = cfg.step_length_m;
-        let mut step = v * (cfg.step_duration_s + cfg.shift_duration_s);
-        if step > max {
-            warnings.push(format!(
-                "cmd_vel: linear.x = {v} m/s is above the top speed {:.4} m/s of the configured step; clamped",
-                max / (cfg.step_duration_s + cfg.shift_duration_s)
-            ));
-            step = max;
-        }
-        let params = GaitParams {
-            step_length_m: step,
-            ..base.clone()
+        let v = Velocity {
+            x_m_s: tw.linear.x,
+            y_m_s: tw.linear.y,
+            yaw_rad_s: tw.angular.z,
         };
-        match planner.set_params(params) {
-            Ok(()) => planner.request(WalkRequest::UntilStop),
-            Err(e) => warnings.push(format!("cmd_vel refused: linear.x = {v} m/s: {e}")),
-        }
+        warnings.extend(self.follower.command(planner, v, now_s));
         warnings
     }
 
@@ -147,6 +113,7 @@ impl Commands {
         let mut warnings = Vec::new();
         if c.stop {
             planner.request(WalkRequest::Stop);
+            self.follower.release();
             return warnings;
         }
         for (field, v) in [
@@ -182,6 +149,14 @@ impl Commands {
             } else {
                 *base = params;
             }
+        }
+        // A walk command walks straight ahead at the configured step, and does not time out
+        // as a cmd_vel walk does.
+        self.follower.release();
+        let forward = Stride::forward(planner.config().step_length_m);
+        if let Err(e) = planner.set_stride(forward) {
+            warnings.push(format!("walk_command refused: {e}"));
+            return warnings;
         }
         planner.request(if c.steps == 0 {
             WalkRequest::UntilStop
@@ -324,7 +299,7 @@ fn run() -> anyhow::Result<()> {
     );
 
     let mut commands = Commands {
-        reported_turning: false,
+        follower: VelocityFollower::new(),
     };
     let result: anyhow::Result<()> = smol::block_on(executor.run(async {
         let mut last_phase = None;
@@ -378,12 +353,16 @@ fn run() -> anyhow::Result<()> {
                     ros.warn(&w);
                 }
             }
+            let t_s = k as f64 / rate;
             while let Ok(Some((msg, _))) = cmd_vel.take() {
-                for w in commands.cmd_vel(&mut planner, &msg, &params) {
+                for w in commands.cmd_vel(&mut planner, &msg, t_s) {
                     ros.warn(&w);
                 }
             }
-            let sample = match planner.update(k as f64 / rate) {
+            if let Some(m) = commands.follower.tick(&mut planner, t_s) {
+                ros.info(&m);
+            }
+            let sample = match planner.update(t_s) {
                 Ok(s) => s,
                 Err(e) => {
                     ros.error(&format!("planner: {e}"));
