@@ -172,8 +172,17 @@ pub fn summarize(
         anyhow::bail!("no joint_states and base pose were recorded during the walk");
     };
     let c = planner.config();
-    let planned_distance_m = o.steps as f64 * c.step_length_m;
-    let measured = monitor.report_at(t_end, &base_end, planned_distance_m);
+    // Where the plan puts the feet: the midpoint between them, first tick to last (the
+    // plan's world frame faces the walk's starting heading).
+    let feet_mid = |s: &GaitSample| (s.ankles_world_m[0].coords + s.ankles_world_m[1].coords) / 2.0;
+    let planned_m = match (plan.first(), plan.last()) {
+        (Some(a), Some(b)) => {
+            let d = feet_mid(b) - feet_mid(a);
+            [d.x, d.y]
+        }
+        _ => [0.0, 0.0],
+    };
+    let measured = monitor.report_at(t_end, &base_end, planned_m);
     let walk_duration_s = end_ns.map_or(t_end, |e| e as f64 * 1e-9) - start_ns as f64 * 1e-9;
     let simulated_s = rec.clock_ns.min(stop_ns) as f64 * 1e-9;
     Ok(WalkSummary {

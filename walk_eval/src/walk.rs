@@ -166,6 +166,12 @@ pub struct WalkReport {
     pub distance_m: f64,
     /// How far the plan moves the base (m).
     pub planned_distance_m: f64,
+    /// How far the base moved to the left of its starting heading (m).
+    pub left_m: f64,
+    /// How far the plan moves the base to the left (m).
+    pub planned_left_m: f64,
+    /// The base's heading at the end, from the start, counter-clockwise (deg).
+    pub final_heading_deg: f64,
     /// Largest horizontal drift of a foot while it carried the robot (m), over all stances.
     pub max_foot_slip_m: f64,
     /// Share of the physics steps with a centre of pressure in which it lay inside the
@@ -322,34 +328,25 @@ impl WalkMonitor {
         self.fell.is_some()
     }
 
-    /// The measures so far, ending at the simulator's present state; `planned_distance_m`
-    /// is how far the plan moves the base.
-    pub fn report(&self, sim: &Sim, planned_distance_m: f64) -> WalkReport {
-        self.report_at(sim.time_s(), &sim.base_pose(), planned_distance_m)
+    /// The measures so far, ending at the simulator's present state; `planned_m` is how far
+    /// the plan moves the base, `[forward, left]` of its starting heading.
+    pub fn report(&self, sim: &Sim, planned_m: [f64; 2]) -> WalkReport {
+        self.report_at(sim.time_s(), &sim.base_pose(), planned_m)
     }
 
     /// The measures so far, ending at `t_s` with the base at `base`.
-    pub fn report_at(
-        &self,
-        t_s: f64,
-        base: &Isometry3<f64>,
-        planned_distance_m: f64,
-    ) -> WalkReport {
-        let forward = self.start_base.rotation * Vector3::x();
-        let moved = base.translation.vector - self.start_base.translation.vector;
-        let forward_xy = Vector3::new(forward.x, forward.y, 0.0);
-        let distance_m = if forward_xy.norm() > 0.0 {
-            moved.dot(&forward_xy.normalize())
-        } else {
-            0.0
-        };
+    pub fn report_at(&self, t_s: f64, base: &Isometry3<f64>, planned_m: [f64; 2]) -> WalkReport {
+        let [distance_m, left_m] = along_heading(&self.start_base, &base.translation.vector);
         WalkReport {
             fell: self.fell.clone(),
             duration_s: t_s - self.start_t_s,
             max_tilt_deg: self.max_tilt_rad.to_degrees(),
             heading_drift_deg: self.max_heading_rad.to_degrees(),
             distance_m,
-            planned_distance_m,
+            planned_distance_m: planned_m[0],
+            left_m,
+            planned_left_m: planned_m[1],
+            final_heading_deg: wrap_pi(yaw(base) - yaw(&self.start_base)).to_degrees(),
             max_foot_slip_m: self.max_slip_m,
             cop_inside_fraction: if self.cop_samples > 0 {
                 self.cop_inside as f64 / self.cop_samples as f64
@@ -398,9 +395,7 @@ pub fn run_plan(
     let (Some(first), Some(last)) = (plan.first(), plan.last()) else {
         return Err(SimError::Plan("the plan has no samples".into()));
     };
-    let forward = first.base_world.rotation * Vector3::x();
-    let planned_distance_m =
-        (last.base_world.translation.vector - first.base_world.translation.vector).dot(&forward);
+    let planned_m = along_heading(&first.base_world, &last.base_world.translation.vector);
 
     sim.reset(&first.base_world, &first.joints_rad)?;
     sim.set_targets(&playback.targets_at(0.0))?;
@@ -419,5 +414,13 @@ pub fn run_plan(
             break;
         }
     }
-    Ok(monitor.report(sim, planned_distance_m))
+    Ok(monitor.report(sim, planned_m))
+}
+
+/// How far `to` is from `start`, `[forward, left]` of the start's heading on the floor (m).
+pub fn along_heading(start: &Isometry3<f64>, to: &Vector3<f64>) -> [f64; 2] {
+    let h = yaw(start);
+    let moved = to - start.translation.vector;
+    let (s, c) = h.sin_cos();
+    [c * moved.x + s * moved.y, -s * moved.x + c * moved.y]
 }

@@ -97,7 +97,7 @@ fn the_bridge_walks_the_robot_with_its_own_compensation() {
             }
         }
         let sim = bridge.backend().sim().unwrap();
-        monitor.unwrap().report(sim, steps as f64 * step_m)
+        monitor.unwrap().report(sim, [steps as f64 * step_m, 0.0])
     };
     let with = walk(true);
     eprintln!("with the bridge's compensation: {with:#?}");
