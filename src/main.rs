@@ -77,6 +77,11 @@ enum Command {
         /// Number of steps (swings before the closing half step).
         #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..=10_000))]
         steps: u32,
+        /// Walk at this velocity: `vx,vy,wz` as cmd_vel's Twist has them (m/s forward, m/s
+        /// left, rad/s counter-clockwise; REP-103), sent in the walk command and scaled into
+        /// the step limits. Default: straight ahead at the full step.
+        #[arg(long, value_name = "VX,VY,WZ", allow_hyphen_values = true, value_parser = plan::parse_twist)]
+        twist: Option<gait_planner::Velocity>,
         /// Robot URDF. Default: the built-in robot.
         #[arg(long, value_name = "URDF")]
         robot: Option<PathBuf>,
@@ -338,6 +343,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }),
         Command::Walk {
             steps,
+            twist,
             robot,
             params,
             mjcf,
@@ -352,6 +358,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             let outcome = walk::walk(&walk::WalkOptions {
                 steps,
+                velocity: twist,
                 robot,
                 params,
                 scene: mjcf.zip(joint_map),
@@ -365,9 +372,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let r = &outcome.report;
             let m = &r.measured;
             println!(
-                "walked {:.3} m of {:.3} m planned in {:.2} s ({:.3} m/s); max tilt {:.2}°, heading drift {:.2}°, foot slip {:.1} mm, CoP inside {:.1}%; {:.1}x real time",
+                "walked {:.3} m forward and {:.3} m left of {:.3} m and {:.3} m planned in {:.2} s ({:.3} m/s forward); max tilt {:.2}°, heading drift {:.2}°, foot slip {:.1} mm, CoP inside {:.1}%; {:.1}x real time",
                 m.distance_m,
+                m.left_m,
                 m.planned_distance_m,
+                m.planned_left_m,
                 r.walk_duration_s,
                 r.speed_m_s,
                 m.max_tilt_deg,
@@ -401,14 +410,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let params = load_params(&robot)?;
             let mut planner = GaitPlanner::new(model, params)?;
             if let Some(v) = twist {
-                let cmd = planner.stride_for(v).context("--twist")?;
-                if let Some(l) = cmd.limited_to {
-                    eprintln!(
-                        "biped: warning: --twist {},{},{} is beyond the step limits; walking {:.4},{:.4},{:.4}",
-                        v.x_m_s, v.y_m_s, v.yaw_rad_s, l.x_m_s, l.y_m_s, l.yaw_rad_s
-                    );
-                }
-                planner.set_stride(cmd.stride).context("--twist")?;
+                plan::apply_twist(&mut planner, v)?;
             }
             let samples = planner.plan(WalkRequest::Steps(steps))?;
             plan::write_csv_file(&csv, planner.model().robot(), &samples)?;

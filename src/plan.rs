@@ -143,3 +143,19 @@ pub fn parse_twist(text: &str) -> Result<gait_planner::Velocity, String> {
         yaw_rad_s: num("wz", z)?,
     })
 }
+
+/// Sets the planner's stride from `--twist` as the planner node does with a command's
+/// velocity: scaled into the step limits, with a warning on stderr when it was.
+pub fn apply_twist(
+    planner: &mut gait_planner::GaitPlanner,
+    v: gait_planner::Velocity,
+) -> anyhow::Result<()> {
+    let cmd = planner.stride_for(v).context("--twist")?;
+    if let Some(l) = cmd.limited_to {
+        eprintln!(
+            "biped: warning: --twist {},{},{} is beyond the step limits; walking {:.4},{:.4},{:.4}",
+            v.x_m_s, v.y_m_s, v.yaw_rad_s, l.x_m_s, l.y_m_s, l.yaw_rad_s
+        );
+    }
+    planner.set_stride(cmd.stride).context("--twist")
+}

@@ -1,6 +1,6 @@
 //! `biped walk`, the main job: the fleet (gait_planner, ik_solver, joint_bridge with the sim
 //! backend) and sim_bridge (MuJoCo) over DDS, in lockstep on simulated time. Each run is in a
-//! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 67-69), with
+//! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 65-69), with
 //! discovery restricted to this host by `biped walk` itself.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -118,6 +118,56 @@ fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
 
 /// Without the joint bridge's sag compensation the hobby servos sag and the robot falls:
 /// `biped walk` says so, writes the fall into report.json and exits non-zero.
+/// `biped walk --twist`: the velocity rides in the walk command to the planner node, which
+/// turns it into strides as the offline plan does. 0.1 m to the left (6 steps of 1/60 m at
+/// the 3 s step period) and 0.1 m back (4 steps of 25 mm), each through the whole fleet in
+/// physics: within 10 % of the command on its axis, little on the other, heading within
+/// 3 deg, no fall, CoP inside the support polygon >= 99 % of the time, slip < 5 mm.
+#[test]
+fn the_fleet_side_steps_and_walks_back_from_a_twist() {
+    for (domain, name, steps, twist, want) in [
+        (65, "side", "6", format!("0,{},0", 0.1 / 18.0), [0.0, 0.1]),
+        (
+            66,
+            "back",
+            "4",
+            format!("{},0,0", -0.025 / 3.0),
+            [-0.1, 0.0],
+        ),
+    ] {
+        let out = out_dir(name);
+        let twist_arg = format!("--twist={twist}");
+        let run = walk(domain, &out, &["--steps", steps, &twist_arg]);
+        assert!(
+            run.status.success(),
+            "biped walk {name} failed:\n{}\n{}",
+            String::from_utf8_lossy(&run.stdout),
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let r = report(&out);
+        eprintln!("{name}: {}", serde_json::to_string_pretty(&r).unwrap());
+        assert!(r["fell"].is_null(), "{name}: the robot fell: {}", r["fell"]);
+        // The plan's feet moved exactly as commanded.
+        assert!(
+            (num(&r, "planned_distance_m") - want[0]).abs() < 1e-9,
+            "{name}"
+        );
+        assert!((num(&r, "planned_left_m") - want[1]).abs() < 1e-9, "{name}");
+        for (axis, key) in [(0, "distance_m"), (1, "left_m")] {
+            let got = num(&r, key);
+            assert!(
+                (got - want[axis]).abs() <= 0.1 * 0.1,
+                "{name}: {key} {got} m, commanded {} m",
+                want[axis]
+            );
+        }
+        assert!(num(&r, "heading_drift_deg") < 3.0, "{name}");
+        assert!(num(&r, "cop_inside_fraction") >= 0.99, "{name}");
+        assert!(num(&r, "max_foot_slip_m") < 0.005, "{name}");
+        assert!(num(&r, "max_tilt_deg") < 10.0, "{name}");
+    }
+}
+
 #[test]
 fn a_fall_is_reported_and_fails_the_command() {
     let out = out_dir("fall");

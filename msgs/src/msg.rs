@@ -391,6 +391,9 @@ pub struct WalkCommand {
     /// Take the command at the first control tick at or after this ROS time (simulated
     /// time under `use_sim_time`); zero: at once.
     pub start_time: Time,
+    /// Walk at this velocity (as `cmd_vel`: REP-103 signs), scaled into the step limits;
+    /// all zero: straight ahead at `step_length`.
+    pub velocity: Twist,
 }
 ros_message!(
     WalkCommand,
@@ -400,7 +403,8 @@ ros_message!(
         ("step_length", "double"),
         ("step_duration", "double"),
         ("stop", "boolean"),
-        ("start_time", "builtin_interfaces/Time")
+        ("start_time", "builtin_interfaces/Time"),
+        ("velocity", "geometry_msgs/Twist")
     ]
 );
 

@@ -37,6 +37,9 @@ use record::Recording;
 pub struct WalkOptions {
     /// Steps (swings before the closing half step).
     pub steps: u32,
+    /// The velocity to walk at (scaled into the step limits); `None`: straight ahead at the
+    /// full step.
+    pub velocity: Option<gait_planner::Velocity>,
     /// Robot URDF; `None` for the built-in robot.
     pub robot: Option<PathBuf>,
     /// ROS 2 parameter file for every node (gait and simulator parameters).
@@ -128,6 +131,10 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     };
     // The offline plan of the same walk: what the planner node will publish, tick for tick.
     let mut planner = GaitPlanner::new(model.clone(), params)?;
+    if let Some(v) = o.velocity {
+        // The same conversion the planner node makes of the command's velocity.
+        crate::plan::apply_twist(&mut planner, v)?;
+    }
     let plan = planner.plan(WalkRequest::Steps(o.steps))?;
     let plan_duration_s = plan.last().map_or(0.0, |s| s.t_s) - plan.first().map_or(0.0, |s| s.t_s);
     std::fs::create_dir_all(&o.out)
@@ -283,9 +290,22 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
             }
             smol::Timer::after(Duration::from_millis(50)).await;
         }
+        let velocity = o.velocity.unwrap_or_default();
         let command = WalkCommand {
             steps: o.steps,
             start_time: Time::from_nanos((o.settle_s * 1e9).round() as i64),
+            velocity: biped_msgs::msg::Twist {
+                linear: biped_msgs::msg::Vector3 {
+                    x: velocity.x_m_s,
+                    y: velocity.y_m_s,
+                    z: 0.0,
+                },
+                angular: biped_msgs::msg::Vector3 {
+                    x: 0.0,
+                    y: 0.0,
+                    z: velocity.yaw_rad_s,
+                },
+            },
             ..WalkCommand::default()
         };
         for _ in 0..3 {

@@ -27,8 +27,12 @@ pub struct WalkSummary {
     pub robot: String,
     /// Steps commanded.
     pub steps: u32,
-    /// Step length (m).
+    /// Step length (m): the configured forward step.
     pub step_length_m: f64,
+    /// The stride walked, per step (m): forward (negative: back) ...
+    pub stride_forward_m: f64,
+    /// ... and to the left (negative: right), from `--twist` or the full step ahead.
+    pub stride_left_m: f64,
     /// Simulated time of the walk's first tick (s).
     pub walk_started_s: f64,
     /// From the walk's first tick to the planner's idle again (s).
@@ -189,6 +193,8 @@ pub fn summarize(
         robot: model.robot().name().to_owned(),
         steps: o.steps,
         step_length_m: c.step_length_m,
+        stride_forward_m: planner.stride().forward_m,
+        stride_left_m: planner.stride().left_m,
         walk_started_s: start_ns as f64 * 1e-9,
         walk_duration_s,
         speed_m_s: if walk_duration_s > 0.0 {

@@ -4,7 +4,8 @@
 //!   `linear.y` sideways, walked as strides within the step limits, a new one taken at the
 //!   next swing; a zero Twist, or none for `cmd_vel_timeout_s`, ends the walk at the next
 //!   feet-together point: [`gait_planner::teleop`]) and `walk_command`
-//!   (biped_msgs/msg/WalkCommand: N steps straight ahead);
+//!   (biped_msgs/msg/WalkCommand: N steps, or until stopped, at its velocity or straight
+//!   ahead);
 //! - publishes `gait/phase` (biped_msgs/msg/GaitPhase) and `gait/ankle_targets`
 //!   (biped_msgs/msg/AnkleTargets) at `control_rate_hz`, idle or walking.
 //!
@@ -127,6 +128,35 @@ impl Commands {
                 return warnings;
             }
         }
+        let tw = &c.velocity;
+        for (field, v) in [
+            ("velocity.linear.x", tw.linear.x),
+            ("velocity.linear.y", tw.linear.y),
+            ("velocity.linear.z", tw.linear.z),
+            ("velocity.angular.x", tw.angular.x),
+            ("velocity.angular.y", tw.angular.y),
+            ("velocity.angular.z", tw.angular.z),
+        ] {
+            if !v.is_finite() {
+                warnings.push(format!(
+                    "walk_command refused: {field} = {v} is not a finite number"
+                ));
+                return warnings;
+            }
+        }
+        let velocity = Velocity {
+            x_m_s: tw.linear.x,
+            y_m_s: tw.linear.y,
+            yaw_rad_s: tw.angular.z,
+        };
+        let by_velocity = velocity != Velocity::default();
+        if by_velocity && c.step_length > 0.0 {
+            warnings.push(format!(
+                "walk_command refused: step_length = {} and a velocity are both set; the velocity sets the steps",
+                c.step_length
+            ));
+            return warnings;
+        }
         let mut params = base.clone();
         if c.step_length > 0.0 {
             params.step_length_m = c.step_length;
@@ -150,14 +180,32 @@ impl Commands {
                 *base = params;
             }
         }
-        // A walk command walks straight ahead at the configured step, and does not time out
-        // as a cmd_vel walk does.
-        self.follower.release();
-        let forward = Stride::forward(planner.config().step_length_m);
-        if let Err(e) = planner.set_stride(forward) {
+        // A walk command walks at its velocity, or straight ahead at the configured step,
+        // and does not time out as a cmd_vel walk does.
+        let stride = if by_velocity {
+            match planner.stride_for(velocity) {
+                Ok(cmd) => {
+                    if let Some(l) = cmd.limited_to {
+                        warnings.push(format!(
+                            "walk_command: velocity linear.x = {}, linear.y = {} m/s is beyond the step limits; walking {:.4}, {:.4} m/s",
+                            velocity.x_m_s, velocity.y_m_s, l.x_m_s, l.y_m_s
+                        ));
+                    }
+                    cmd.stride
+                }
+                Err(e) => {
+                    warnings.push(format!("walk_command refused: velocity: {e}"));
+                    return warnings;
+                }
+            }
+        } else {
+            Stride::forward(planner.config().step_length_m)
+        };
+        if let Err(e) = planner.set_stride(stride) {
             warnings.push(format!("walk_command refused: {e}"));
             return warnings;
         }
+        self.follower.release();
         planner.request(if c.steps == 0 {
             WalkRequest::UntilStop
         } else {
