@@ -27,6 +27,10 @@ pub struct GaitSample {
     pub phase: PhaseKind,
     /// Which feet carry the robot.
     pub support: Support,
+    /// The foot taken as fixed by leg odometry: the stance foot of a swing, and from the
+    /// start of a CoM shift the foot it shifts onto (both feet are down then: the moment to
+    /// change the fixed point); other phases keep the last one.
+    pub planted: Side,
     /// Number of the swing in progress or last finished (1 = the first half step); 0 before.
     pub step_index: u32,
     /// Progress through the phase, 0 to 1.
@@ -129,6 +133,8 @@ pub struct GaitPlanner {
     next_swing: Side,
     /// What the next swing does; taken at the start of each swing.
     stride: Stride,
+    /// The foot leg odometry holds fixed ([`GaitSample::planted`]).
+    planted: Side,
     /// Sideways distance between the ankles of the initial pose (m): the feet never come
     /// closer.
     stance_width_m: f64,
@@ -306,6 +312,7 @@ impl GaitPlanner {
         Self {
             next_swing: cfg.first_foot,
             stride: Stride::forward(cfg.step_length_m),
+            planted: cfg.first_foot.other(),
             stance_width_m,
             model,
             cfg,
@@ -612,10 +619,16 @@ impl GaitPlanner {
         self.com_xy = [posture.com.x, posture.com.y];
         let support = ph.support();
         let poly = self.support_polygon(support, &feet);
+        self.planted = match (ph.kind, ph.side) {
+            (PhaseKind::Shift, Some(onto)) => onto,
+            (kind, Some(swing)) if kind.is_swing() => swing.other(),
+            _ => self.planted,
+        };
         Ok(GaitSample {
             t_s,
             phase: ph.kind,
             support,
+            planted: self.planted,
             step_index: ph.step_index,
             progress: p,
             base_world: posture.base,

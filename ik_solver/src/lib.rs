@@ -19,6 +19,7 @@ mod error;
 mod ik;
 mod legs;
 mod model;
+pub mod odometry;
 mod statics;
 pub mod support;
 
@@ -26,6 +27,7 @@ pub use error::{IkError, ModelError};
 pub use ik::{AnkleTarget, BipedModel, IkIssue, LegSolution};
 pub use legs::{Axis, JointRole, Leg, LegJoint, LegJointNames, LegRoleMap, Side, SoleRect};
 pub use model::{CollisionBox, Inertial, Joint, JointKind, JointLimits, Link, RobotModel};
+pub use odometry::LegOdometry;
 pub use statics::{DOUBLE_SUPPORT_TOLERANCE_M, FootLoad, GRAVITY_M_S2, Stance, StaticPose};
 
 /// The URDF of the project's default robot, built in so every command has a robot to use.
