@@ -114,7 +114,8 @@ enum Command {
     ///
     /// Types that can be recorded: builtin_interfaces/msg/Time, std_msgs/msg/{Header,
     /// String}, geometry_msgs/msg/{Point, Point32, Polygon, PolygonStamped, Pose,
-    /// PoseStamped, PointStamped, Quaternion, Twist, Vector3}, sensor_msgs/msg/JointState,
+    /// PoseStamped, PoseWithCovariance, PointStamped, Quaternion, Twist,
+    /// TwistWithCovariance, Vector3}, nav_msgs/msg/Odometry, sensor_msgs/msg/JointState,
     /// rosgraph_msgs/msg/Clock, rcl_interfaces/msg/Log, diagnostic_msgs/msg/{DiagnosticArray,
     /// DiagnosticStatus, KeyValue}, biped_msgs/msg/{GaitPhase, AnkleTargets, WalkCommand}.
     Record {

@@ -34,8 +34,9 @@ use std::process::{Command, Stdio};
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{
     AnkleTargets, Clock, DiagnosticArray, DiagnosticStatus, GaitPhase, Header, JointState,
-    KeyValue, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose, PoseStamped, Quaternion,
-    StringMsg, Time, Twist, Vector3, WalkCommand,
+    KeyValue, Odometry, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose, PoseStamped,
+    PoseWithCovariance, Quaternion, StringMsg, Time, Twist, TwistWithCovariance, Vector3,
+    WalkCommand,
 };
 use ros2_client::dds::rustdds;
 use rustdds::no_key::{DeserializerAdapter, SerializerAdapter};
@@ -164,6 +165,9 @@ fn registry() -> Vec<Entry> {
         Polygon,
         PolygonStamped,
         Twist,
+        PoseWithCovariance,
+        TwistWithCovariance,
+        Odometry,
         JointState,
         Clock,
         StringMsg,
@@ -185,6 +189,12 @@ fn find<'a>(registry: &'a [Entry], field_type_name: &str) -> Option<&'a Entry> {
 /// The element type of `sequence<T>`, if it is one.
 fn sequence_of(ty: &str) -> Option<&str> {
     ty.strip_prefix("sequence<")?.strip_suffix('>')
+}
+
+/// The element type and length of a fixed array `T[N]`, if it is one.
+fn fixed_array_of(ty: &str) -> Option<(&str, usize)> {
+    let (element, rest) = ty.split_once('[')?;
+    Some((element, rest.strip_suffix(']')?.parse().ok()?))
 }
 
 /// The `RosMessage` types msg.rs defines: every `ros_message!(Type, ...)` and every
@@ -262,6 +272,23 @@ fn thaw(registry: &[Entry], value: &Json, ty: &str, at: &str) -> Result<Yaml, St
                 let Json::Array(items) = value else {
                     return wrong();
                 };
+                let items = items
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| thaw(registry, v, element, &format!("{at}[{i}]")))
+                    .collect::<Result<Vec<_>, _>>()?;
+                return Ok(Yaml::Sequence(items));
+            }
+            if let Some((element, n)) = fixed_array_of(ty) {
+                let Json::Array(items) = value else {
+                    return wrong();
+                };
+                if items.len() != n {
+                    return Err(format!(
+                        "{at}: {ty} needs {n} values, the sample has {}",
+                        items.len()
+                    ));
+                }
                 let items = items
                     .iter()
                     .enumerate()

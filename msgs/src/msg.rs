@@ -270,6 +270,108 @@ ros_message!(
     ]
 );
 
+/// A row-major 6 x 6 covariance (`float64[36]`: x, y, z, rotation about x, y, z), as the
+/// `*WithCovariance` types carry it. A fixed array of 36: written as 36 doubles, no length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Covariance6(pub [f64; 36]);
+
+impl Default for Covariance6 {
+    fn default() -> Self {
+        Self([0.0; 36])
+    }
+}
+
+impl Serialize for Covariance6 {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeTuple;
+        let mut t = serializer.serialize_tuple(36)?;
+        for v in &self.0 {
+            t.serialize_element(v)?;
+        }
+        t.end()
+    }
+}
+
+impl<'de> Deserialize<'de> for Covariance6 {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = Covariance6;
+            fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str("36 doubles")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Covariance6, A::Error> {
+                let mut out = [0.0; 36];
+                for (i, slot) in out.iter_mut().enumerate() {
+                    *slot = seq
+                        .next_element()?
+                        .ok_or_else(|| serde::de::Error::invalid_length(i, &self))?;
+                }
+                Ok(Covariance6(out))
+            }
+        }
+        deserializer.deserialize_tuple(36, Visitor)
+    }
+}
+
+/// geometry_msgs/msg/PoseWithCovariance.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct PoseWithCovariance {
+    /// The pose.
+    pub pose: Pose,
+    /// Its covariance (m², rad²).
+    pub covariance: Covariance6,
+}
+ros_message!(
+    PoseWithCovariance,
+    "geometry_msgs",
+    [("pose", "geometry_msgs/Pose"), ("covariance", "double[36]")]
+);
+
+/// geometry_msgs/msg/TwistWithCovariance.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct TwistWithCovariance {
+    /// The velocity.
+    pub twist: Twist,
+    /// Its covariance ((m/s)², (rad/s)²).
+    pub covariance: Covariance6,
+}
+ros_message!(
+    TwistWithCovariance,
+    "geometry_msgs",
+    [
+        ("twist", "geometry_msgs/Twist"),
+        ("covariance", "double[36]")
+    ]
+);
+
+/// nav_msgs/msg/Odometry: the pose in `header.frame_id` (odom), the velocity in
+/// `child_frame_id` (the base link), REP-105.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Odometry {
+    /// Stamp and the pose's frame (`odom`).
+    pub header: Header,
+    /// The frame of the velocity and of the body (the base link).
+    pub child_frame_id: String,
+    /// The base pose in `header.frame_id`.
+    pub pose: PoseWithCovariance,
+    /// The base velocity in `child_frame_id`.
+    pub twist: TwistWithCovariance,
+}
+ros_message!(
+    Odometry,
+    "nav_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("child_frame_id", "string"),
+        ("pose", "geometry_msgs/PoseWithCovariance"),
+        ("twist", "geometry_msgs/TwistWithCovariance"),
+    ]
+);
+
 /// sensor_msgs/msg/JointState.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct JointState {

@@ -107,6 +107,9 @@ pub fn known_types() -> &'static [KnownType] {
             Polygon,
             PolygonStamped,
             Twist,
+            PoseWithCovariance,
+            TwistWithCovariance,
+            Odometry,
             JointState,
             Clock,
             StringMsg,
@@ -428,8 +431,8 @@ mod tests {
 
     #[test]
     fn an_unknown_type_is_named_in_the_error() {
-        let e = rihs01("nav_msgs/msg/Odometry").unwrap_err();
-        assert!(e.to_string().contains("'nav_msgs/msg/Odometry'"), "{e}");
+        let e = rihs01("tf2_msgs/msg/TFMessage").unwrap_err();
+        assert!(e.to_string().contains("'tf2_msgs/msg/TFMessage'"), "{e}");
         assert!(e.to_string().contains("sensor_msgs/msg/JointState"), "{e}");
     }
 }
