@@ -122,7 +122,8 @@ fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
 /// turns it into strides as the offline plan does. 0.1 m to the left (6 steps of 1/60 m at
 /// the 3 s step period) and 0.1 m back (4 steps of 25 mm), each through the whole fleet in
 /// physics: within 10 % of the command on its axis, little on the other, heading within
-/// 3 deg, no fall, CoP inside the support polygon >= 99 % of the time, slip < 5 mm.
+/// 3 deg, no fall, CoP inside the support polygon >= 99 % of the time, slip < 5 mm, and
+/// leg odometry within 10 % of the distance of the true base.
 #[test]
 fn the_fleet_side_steps_and_walks_back_from_a_twist() {
     for (domain, name, steps, twist, want) in [
@@ -165,6 +166,10 @@ fn the_fleet_side_steps_and_walks_back_from_a_twist() {
         assert!(num(&r, "cop_inside_fraction") >= 0.99, "{name}");
         assert!(num(&r, "max_foot_slip_m") < 0.005, "{name}");
         assert!(num(&r, "max_tilt_deg") < 10.0, "{name}");
+        // Leg odometry of the measured joints against the simulator's ground truth: within
+        // 10 % of the 0.1 m walked, heading within 5 deg.
+        assert!(num(&r, "odometry_error_m") < 0.01, "{name}");
+        assert!(num(&r, "odometry_yaw_error_deg") < 5.0, "{name}");
     }
 }
 

@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use anyhow::Context;
 use gait_planner::{GaitPlanner, GaitSample, PhaseKind};
 use ik_solver::support::signed_margin;
-use ik_solver::{BipedModel, Side};
+use ik_solver::{BipedModel, LegOdometry, Side};
 use nalgebra::Isometry3;
 use serde::Serialize;
 use walk_eval::{Observation, WalkMonitor, WalkReport};
@@ -42,6 +42,12 @@ pub struct WalkSummary {
     /// The measures (distance, fall, tilt, heading, slip, centre of pressure).
     #[serde(flatten)]
     pub measured: WalkReport,
+    /// Leg odometry of the measured joints (ik_solver's, as the gait_planner node computes
+    /// it, with the plan's planted foot), started at the true base pose: how far its final
+    /// base is from the true one, on the floor (m) ...
+    pub odometry_error_m: f64,
+    /// ... and in heading (deg).
+    pub odometry_yaw_error_deg: f64,
     /// Smallest margin of the planned CoM to the planned support polygon (m).
     pub planned_min_com_margin_m: f64,
     /// The margin the planner was asked to keep (m).
@@ -113,6 +119,13 @@ pub fn summarize(
             .map_or(PhaseKind::Idle, |(_, p)| p.kind)
     };
     let mut monitor: Option<WalkMonitor> = None;
+    let mut odometry: Option<LegOdometry> = None;
+    let dt_ns = 1e9 / planner.config().control_rate_hz;
+    let planted_at = |t: i64| {
+        let k = ((t - start_ns) as f64 / dt_ns).round().max(0.0) as usize;
+        plan.get(k.min(plan.len().saturating_sub(1)))
+            .map_or(Side::Left, |s| s.planted)
+    };
     let mut last: Option<(f64, Isometry3<f64>)> = None;
     let (mut worst_err, mut worst_joint) = (0.0f64, String::new());
     let stop_ns = rec.end_ns(o.tail_s).unwrap_or(i64::MAX);
@@ -154,6 +167,18 @@ pub fn summarize(
         monitor
             .get_or_insert_with(|| WalkMonitor::starting_at(t_s, *base))
             .observe_state(&obs, phase_at(t));
+        match &mut odometry {
+            None => {
+                odometry = Some(
+                    LegOdometry::new(model, *base, &q, planted_at(t))
+                        .context("leg odometry of the measured joints")?,
+                );
+            }
+            Some(odo) => {
+                odo.update(model, &q, planted_at(t))
+                    .context("leg odometry of the measured joints")?;
+            }
+        }
         last = Some((t_s, *base));
         // Tracking: during the walk, measured against the command of the same tick.
         if end_ns.is_none_or(|e| t < e)
@@ -187,6 +212,20 @@ pub fn summarize(
         _ => [0.0, 0.0],
     };
     let measured = monitor.report_at(t_end, &base_end, planned_m);
+    let (odometry_error_m, odometry_yaw_error_deg) = match &odometry {
+        Some(odo) => {
+            let e = odo.base().translation.vector - base_end.translation.vector;
+            let yaw = |p: &Isometry3<f64>| {
+                let x = p.rotation * nalgebra::Vector3::x();
+                x.y.atan2(x.x)
+            };
+            let dyaw = (yaw(odo.base()) - yaw(&base_end) + std::f64::consts::PI)
+                .rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+            (e.xy().norm(), dyaw.abs().to_degrees())
+        }
+        None => (f64::NAN, f64::NAN),
+    };
     let walk_duration_s = end_ns.map_or(t_end, |e| e as f64 * 1e-9) - start_ns as f64 * 1e-9;
     let simulated_s = rec.clock_ns.min(stop_ns) as f64 * 1e-9;
     Ok(WalkSummary {
@@ -202,6 +241,8 @@ pub fn summarize(
         } else {
             0.0
         },
+        odometry_error_m,
+        odometry_yaw_error_deg,
         planned_min_com_margin_m: plan
             .iter()
             .map(|s| s.margin_m)
