@@ -230,6 +230,28 @@ fn an_rclpy_teleop_side_steps_the_robot_and_the_walk_ends_when_it_stops() {
         "forward drift {}",
         x(last) - x(first)
     );
+    // nav_msgs/Odometry on /odom, decoded by rclpy: frames per REP-105; leg odometry of the
+    // mock bridge's joint states (the commands, so the planned pelvis) ends where the
+    // planned pelvis does; its covariance grew with the path; it saw the sideways speed.
+    assert!(
+        v["odom_count"].as_u64().unwrap() > 100,
+        "{}",
+        v["odom_count"]
+    );
+    let (o0, o1) = (&v["odom_first"], &v["odom_last"]);
+    assert_eq!(o1["frame"], "odom");
+    assert_eq!(o1["child"], "base_link");
+    let oy = |o: &Value| o["y"].as_f64().unwrap();
+    assert!(
+        (oy(o1) - y(last)).abs() < 0.003,
+        "odom y {} vs planned pelvis {}",
+        oy(o1),
+        y(last)
+    );
+    assert!(o1["qz"].as_f64().unwrap().abs() < 0.01, "odom turned");
+    let cov = |o: &Value, i: usize| o["cov"][i].as_f64().unwrap();
+    assert!(cov(o1, 0) > cov(o0, 0) && cov(o0, 0) >= 0.002f64.powi(2) - 1e-12);
+    assert!(v["odom_max_vy"].as_f64().unwrap() > 0.0);
     for node in ["gait_planner", "ik_solver", "joint_bridge"] {
         assert_eq!(v["exits"][node]["returncode"], 0, "{node}");
     }

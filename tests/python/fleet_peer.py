@@ -246,6 +246,13 @@ def scenario_teleop(bin_dir, params):
     peer.node.create_subscription(AnkleTargets, "/gait/ankle_targets", lambda m: pelvis.append(
         {"stamp": stamp_ns(m.header), "x": m.pelvis.x, "y": m.pelvis.y}),
         QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
+    from nav_msgs.msg import Odometry
+    odom = []
+    peer.node.create_subscription(Odometry, "/odom", lambda m: odom.append(
+        {"stamp": stamp_ns(m.header), "frame": m.header.frame_id, "child": m.child_frame_id,
+         "x": m.pose.pose.position.x, "y": m.pose.pose.position.y, "qz": m.pose.pose.orientation.z,
+         "qw": m.pose.pose.orientation.w, "cov": list(m.pose.covariance), "vy": m.twist.twist.linear.y}),
+        QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
     out = {"nodes_seen": peer.wait_for_nodes(), "matched": peer.wait_for_subscribers(peer.cmd_vel_pub)}
     out["flowing"] = peer.wait_for_flow()
     out["flow_diag"] = getattr(peer, "flow_diag", None)
@@ -257,7 +264,9 @@ def scenario_teleop(bin_dir, params):
         peer.spin(0.1)
     out["finished"] = peer.spin(40.0, peer.idle_after_walking)
     peer.spin(0.5)
-    out.update(phases=peer.phases, pelvis=pelvis, rosout=peer.rosout)
+    out.update(phases=peer.phases, pelvis=pelvis, rosout=peer.rosout, odom_count=len(odom),
+               odom_first=odom[0] if odom else None, odom_last=odom[-1] if odom else None,
+               odom_max_vy=max((o["vy"] for o in odom), default=None))
     out["exits"] = stop_nodes(procs)
     return out
 

@@ -7,7 +7,11 @@
 //!   (biped_msgs/msg/WalkCommand: N steps, or until stopped, at its velocity or straight
 //!   ahead);
 //! - publishes `gait/phase` (biped_msgs/msg/GaitPhase) and `gait/ankle_targets`
-//!   (biped_msgs/msg/AnkleTargets) at `control_rate_hz`, idle or walking.
+//!   (biped_msgs/msg/AnkleTargets) at `control_rate_hz`, idle or walking;
+//! - subscribes `joint_states` and publishes `odom` (nav_msgs/msg/Odometry, frame `odom`,
+//!   child the base link, REP-105): leg odometry of the measured joints with the planted
+//!   foot of the plan as the fixed point ([`ik_solver::odometry`]), from the first joint
+//!   state that names every joint.
 //!
 //! Parameters: those of `config/gait.yaml` plus `robot_description_file` (URDF path; empty
 //! for the built-in robot). Bad commands are refused or clamped with a warning on `/rosout`
@@ -25,11 +29,14 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use anyhow::Context as _;
-use biped_msgs::msg::{AnkleTargets, GaitPhase, Header, Point, Twist, WalkCommand};
+use biped_msgs::msg::{
+    AnkleTargets, Covariance6, GaitPhase, Header, JointState, Odometry, Point, Pose,
+    PoseWithCovariance, Quaternion, Twist, TwistWithCovariance, Vector3, WalkCommand,
+};
 use gait_planner::{
     GaitParams, GaitPlanner, GaitSample, PhaseKind, Stride, Velocity, VelocityFollower, WalkRequest,
 };
-use ik_solver::BipedModel;
+use ik_solver::{BipedModel, LegOdometry};
 use node_runtime::{NodeSetup, RosNode, TickSource};
 use ros2_client::ParameterValue;
 
@@ -215,6 +222,140 @@ impl Commands {
     }
 }
 
+/// Standard deviation of the odometry's velocity (m/s, rad/s): finite differences of leg
+/// odometry at the control rate, servo noise included.
+const ODOM_TWIST_SIGMA: (f64, f64) = (0.01, 0.05);
+
+/// `odom`: leg odometry of the measured joints (`joint_states`), with the planted foot of
+/// the plan as the fixed point, from the first complete joint state on (the base then is
+/// where the plan has it: the odom frame is the walk frame).
+struct OdomPublisher {
+    q: Vec<f64>,
+    seen: Vec<bool>,
+    odo: Option<LegOdometry>,
+    nonfinite_reported: bool,
+}
+
+impl OdomPublisher {
+    fn new(model: &BipedModel) -> Self {
+        let n = model.robot().dof_count();
+        Self {
+            q: vec![0.0; n],
+            seen: vec![false; n],
+            odo: None,
+            nonfinite_reported: false,
+        }
+    }
+
+    /// Takes a measured joint state; returns a warning once for values that are not
+    /// finite (the message is then ignored).
+    fn joint_states(&mut self, model: &BipedModel, js: &JointState) -> Option<String> {
+        if let Some((name, v)) = js
+            .name
+            .iter()
+            .zip(&js.position)
+            .find(|(_, v)| !v.is_finite())
+        {
+            if !self.nonfinite_reported {
+                self.nonfinite_reported = true;
+                return Some(format!(
+                    "odom: joint_states has {name} = {v}; such messages are ignored (reported once)"
+                ));
+            }
+            return None;
+        }
+        for (name, &v) in js.name.iter().zip(&js.position) {
+            if let Some(d) = model.robot().dof_index(name) {
+                self.q[d] = v;
+                self.seen[d] = true;
+            }
+        }
+        None
+    }
+
+    /// The odometry of this tick, once every joint has been measured.
+    fn tick(
+        &mut self,
+        model: &BipedModel,
+        sample: &GaitSample,
+        dt_s: f64,
+        header: Header,
+        base_frame: &str,
+    ) -> anyhow::Result<Option<Odometry>> {
+        if !self.seen.iter().all(|&s| s) {
+            return Ok(None);
+        }
+        let (prev, base) = match &mut self.odo {
+            None => {
+                let odo = LegOdometry::new(model, sample.base_world, &self.q, sample.planted)?;
+                let b = *odo.base();
+                self.odo = Some(odo);
+                (b, b)
+            }
+            Some(odo) => {
+                let prev = *odo.base();
+                (prev, odo.update(model, &self.q, sample.planted)?)
+            }
+        };
+        let Some(odo) = &self.odo else {
+            return Ok(None);
+        };
+        // Velocity in the base frame (REP-105: the twist is in child_frame_id).
+        let v =
+            base.rotation.inverse() * (base.translation.vector - prev.translation.vector) / dt_s;
+        let w = (prev.rotation.inverse() * base.rotation).scaled_axis() / dt_s;
+        let t = &base.translation.vector;
+        let r = base.rotation.as_ref().coords;
+        let mut twist_cov = [0.0; 36];
+        for i in 0..6 {
+            let sigma = if i < 3 {
+                ODOM_TWIST_SIGMA.0
+            } else {
+                ODOM_TWIST_SIGMA.1
+            };
+            twist_cov[i * 6 + i] = sigma * sigma;
+        }
+        Ok(Some(Odometry {
+            header: Header {
+                frame_id: "odom".into(),
+                ..header
+            },
+            child_frame_id: base_frame.to_owned(),
+            pose: PoseWithCovariance {
+                pose: Pose {
+                    position: Point {
+                        x: t.x,
+                        y: t.y,
+                        z: t.z,
+                    },
+                    orientation: Quaternion {
+                        x: r.x,
+                        y: r.y,
+                        z: r.z,
+                        w: r.w,
+                    },
+                },
+                covariance: Covariance6(odo.covariance()),
+            },
+            twist: TwistWithCovariance {
+                twist: Twist {
+                    linear: Vector3 {
+                        x: v.x,
+                        y: v.y,
+                        z: v.z,
+                    },
+                    angular: Vector3 {
+                        x: w.x,
+                        y: w.y,
+                        z: w.z,
+                    },
+                },
+                covariance: Covariance6(twist_cov),
+            },
+        }))
+    }
+}
+
 fn to_msgs(
     s: &GaitSample,
     stamp: biped_msgs::msg::Time,
@@ -335,6 +476,9 @@ fn run() -> anyhow::Result<()> {
     let targets_pub = ros.publisher::<AnkleTargets>("gait/ankle_targets")?;
     let cmd_vel = ros.subscription::<Twist>("cmd_vel")?;
     let walk_cmd = ros.subscription::<WalkCommand>("walk_command")?;
+    let joint_states = ros.subscription::<JointState>("joint_states")?;
+    let odom_pub = ros.publisher::<Odometry>("odom")?;
+    let mut odom = OdomPublisher::new(&model);
     let mut ticks = TickSource::new(&mut ros, rate)?;
     let executor = ros.executor()?;
     let c = planner.config();
@@ -427,6 +571,26 @@ fn run() -> anyhow::Result<()> {
             }
             let sent = to_msgs(&sample, now, &base_frame);
             publish(&ros, &targets_pub, &phase_pub, &sent);
+            while let Ok(Some((js, _))) = joint_states.take() {
+                if let Some(w) = odom.joint_states(&model, &js) {
+                    ros.warn(&w);
+                }
+            }
+            match odom.tick(
+                &model,
+                &sample,
+                1.0 / rate,
+                sent.0.header.clone(),
+                &base_frame,
+            ) {
+                Ok(Some(o)) => {
+                    if let Err(e) = odom_pub.publish(o) {
+                        ros.error_throttled("publish odom", &format!("publish odom: {e}"));
+                    }
+                }
+                Ok(None) => {}
+                Err(e) => ros.error_throttled("odom", &format!("odom: {e}")),
+            }
             last_sent = Some(sent);
         }
         Ok(())
