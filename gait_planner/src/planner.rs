@@ -35,10 +35,12 @@ pub struct GaitSample {
     pub step_index: u32,
     /// Progress through the phase, 0 to 1.
     pub progress: f64,
-    /// Pose of the base (root) link in the world; level, facing +x.
+    /// Pose of the base (root) link in the world; level, heading between the feet's.
     pub base_world: Isometry3<f64>,
     /// World position of each ankle-pitch axis, `[left, right]` (m).
     pub ankles_world_m: [Point3<f64>; 2],
+    /// Heading of each foot in the world, counter-clockwise from +x, `[left, right]` (rad).
+    pub feet_yaw_rad: [f64; 2],
     /// Each ankle relative to its hip point, base axes: what the IK node receives.
     pub targets: [AnkleTarget; 2],
     /// All joint positions (rad), in [`ik_solver::RobotModel::dof_names`] order; joints
@@ -85,8 +87,12 @@ struct Phase {
     step_index: u32,
     feet_from: [Point3<f64>; 2],
     feet_to: [Point3<f64>; 2],
+    feet_yaw_from: [f64; 2],
+    feet_yaw_to: [f64; 2],
     base_z_from: f64,
     base_z_to: f64,
+    base_yaw_from: f64,
+    base_yaw_to: f64,
     drive: Drive,
 }
 
@@ -302,8 +308,12 @@ impl GaitPlanner {
             step_index: 0,
             feet_from: feet,
             feet_to: feet,
+            feet_yaw_from: [0.0; 2],
+            feet_yaw_to: [0.0; 2],
             base_z_from: z_stand,
             base_z_to: z_stand,
+            base_yaw_from: 0.0,
+            base_yaw_to: 0.0,
             drive: Drive::Base {
                 from: base_xy,
                 to: base_xy,
@@ -432,22 +442,26 @@ impl GaitPlanner {
         Self::base_z(&self.model, self.cfg.hip_height_m)
     }
 
-    /// Centre of a foot's sole on the floor, for an ankle position.
-    fn sole_centre(&self, side: Side, ankle: &Point3<f64>) -> Xy {
+    /// Centre of a foot's sole on the floor, for an ankle position and foot heading.
+    fn sole_centre(&self, side: Side, ankle: &Point3<f64>, yaw_rad: f64) -> Xy {
         let r = &self.model.leg(side).sole;
-        [
-            ankle.x + (r.x_min_m + r.x_max_m) / 2.0,
-            ankle.y + (r.y_min_m + r.y_max_m) / 2.0,
-        ]
+        let (cx, cy) = ((r.x_min_m + r.x_max_m) / 2.0, (r.y_min_m + r.y_max_m) / 2.0);
+        let (s, c) = yaw_rad.sin_cos();
+        [ankle.x + c * cx - s * cy, ankle.y + s * cx + c * cy]
     }
 
-    /// The support polygon for the feet carrying the robot.
-    pub fn support_polygon(&self, support: Support, ankles: &[Point3<f64>; 2]) -> Vec<Xy> {
+    /// The support polygon for the feet carrying the robot, each sole turned to its heading.
+    pub fn support_polygon(
+        &self,
+        support: Support,
+        ankles: &[Point3<f64>; 2],
+        feet_yaw_rad: &[f64; 2],
+    ) -> Vec<Xy> {
         let corners = |s: Side| {
-            self.model
-                .leg(s)
-                .sole
-                .corners([ankles[s.index()].x, ankles[s.index()].y], 0.0)
+            self.model.leg(s).sole.corners(
+                [ankles[s.index()].x, ankles[s.index()].y],
+                feet_yaw_rad[s.index()],
+            )
         };
         match support {
             Support::Left => corners(Side::Left).to_vec(),
@@ -460,22 +474,28 @@ impl GaitPlanner {
         }
     }
 
-    /// Places the pelvis at (x, y, z) and solves both legs for the feet.
+    /// Places the pelvis at (x, y, z) with a heading and solves both legs for the feet.
     fn posture(
         &mut self,
         base_xy: Xy,
         base_z: f64,
+        base_yaw: f64,
         feet: &[Point3<f64>; 2],
+        feet_yaw: &[f64; 2],
     ) -> Result<Posture, GaitError> {
-        let base = Isometry3::from_parts(
-            Translation3::new(base_xy[0], base_xy[1], base_z),
-            UnitQuaternion::identity(),
-        );
+        // Heading 0 exactly the identity, so straight walks keep their exact numbers.
+        let rotation = if base_yaw == 0.0 {
+            UnitQuaternion::identity()
+        } else {
+            UnitQuaternion::from_euler_angles(0.0, 0.0, base_yaw)
+        };
+        let base =
+            Isometry3::from_parts(Translation3::new(base_xy[0], base_xy[1], base_z), rotation);
         let targets = Side::BOTH.map(|s| {
-            let hip = base.translation.vector + self.model.leg(s).hip_in_base_m;
+            let hip = base.translation.vector + rotation * self.model.leg(s).hip_in_base_m;
             AnkleTarget {
-                ankle_in_hip_m: feet[s.index()].coords - hip,
-                foot_yaw_rad: 0.0,
+                ankle_in_hip_m: rotation.inverse() * (feet[s.index()].coords - hip),
+                foot_yaw_rad: feet_yaw[s.index()] - base_yaw,
             }
         });
         let mut q = vec![0.0; self.model.robot().dof_count()];
@@ -512,12 +532,14 @@ impl GaitPlanner {
         &mut self,
         com_goal: Xy,
         base_z: f64,
+        base_yaw: f64,
         feet: &[Point3<f64>; 2],
+        feet_yaw: &[f64; 2],
     ) -> Result<Posture, GaitError> {
         let mut b = self.base_xy;
         let mut gain = [0.8, 0.8];
         let mut prev: Option<(Xy, Xy)> = None;
-        let mut best = self.posture(b, base_z, feet)?;
+        let mut best = self.posture(b, base_z, base_yaw, feet, feet_yaw)?;
         for _ in 0..30 {
             let c = [best.com.x, best.com.y];
             let err = [com_goal[0] - c[0], com_goal[1] - c[1]];
@@ -537,44 +559,76 @@ impl GaitPlanner {
             }
             prev = Some((b, c));
             b = [b[0] + err[0] / gain[0], b[1] + err[1] / gain[1]];
-            best = self.posture(b, base_z, feet)?;
+            best = self.posture(b, base_z, base_yaw, feet, feet_yaw)?;
         }
         Ok(best)
     }
 
-    /// Where the swing foot lands for a stride: `forward_m` ahead of the stance foot, at
-    /// the standing width from it, plus twice `left_m` when it swings towards the side of
-    /// travel (the other foot closes back to the standing width).
-    fn landing(&self, feet: &[Point3<f64>; 2], swing: Side, stride: Stride) -> Point3<f64> {
-        let stance = feet[swing.other().index()];
+    /// Where the swing foot lands for a stride, and its heading. The frame of the step is
+    /// the point between the feet when they stand together (the standing width apart,
+    /// both at the stance foot's heading). The foot on the side of the turn turns by twice
+    /// the stride's turn (the other comes back parallel), and lands `forward_m` ahead of
+    /// that point at half the standing width from it in its new heading, plus twice
+    /// `left_m` outwards when it swings towards the side of travel (the other foot closes
+    /// back to the standing width). A turn in place thus turns the robot about that point.
+    fn landing(
+        &self,
+        feet: &[Point3<f64>; 2],
+        feet_yaw: &[f64; 2],
+        swing: Side,
+        stride: Stride,
+    ) -> (Point3<f64>, f64) {
+        let st = swing.other();
+        let (stance, stance_yaw) = (feet[st.index()], feet_yaw[st.index()]);
         let open = if stride.left_m * swing.sign() > 0.0 {
             2.0 * stride.left_m.abs()
         } else {
             0.0
         };
-        Point3::new(
-            stance.x + stride.forward_m,
-            stance.y + swing.sign() * (self.stance_width_m + open),
-            feet[swing.index()].z,
+        let turn = if stride.turn_rad * swing.sign() > 0.0 {
+            2.0 * stride.turn_rad
+        } else {
+            0.0
+        };
+        let half = self.stance_width_m / 2.0;
+        let rot = |yaw: f64, x: f64, y: f64| {
+            let (s, c) = yaw.sin_cos();
+            (c * x - s * y, s * x + c * y)
+        };
+        // The point between the feet standing together.
+        let (mx, my) = rot(stance_yaw, 0.0, swing.sign() * half);
+        let yaw = stance_yaw + turn;
+        let (dx, dy) = rot(yaw, stride.forward_m, swing.sign() * (half + open));
+        (
+            Point3::new(
+                stance.x + mx + dx,
+                stance.y + my + dy,
+                feet[swing.index()].z,
+            ),
+            yaw,
         )
     }
 
-    fn swing_feet(&self, p: f64) -> [Point3<f64>; 2] {
+    /// The feet and their headings at progress `p` of the phase: the swing foot along its
+    /// curve, turning as it advances; the others where they are.
+    fn swing_feet(&self, p: f64) -> ([Point3<f64>; 2], [f64; 2]) {
         let ph = &self.phase;
         let (from, to) = (ph.feet_from, ph.feet_to);
         match (ph.kind.is_swing(), ph.side) {
             (true, Some(swing)) => {
-                let mut feet = from;
-                let (a, b) = (from[swing.index()], to[swing.index()]);
+                let (mut feet, mut yaw) = (from, ph.feet_yaw_from);
+                let k = swing.index();
+                let (a, b) = (from[k], to[k]);
                 let u = swing_advance(p);
-                feet[swing.index()] = Point3::new(
+                feet[k] = Point3::new(
                     a.x + (b.x - a.x) * u,
                     a.y + (b.y - a.y) * u,
                     a.z + (b.z - a.z) * u + self.cfg.foot_lift_m * swing_height(p),
                 );
-                feet
+                yaw[k] = ph.feet_yaw_from[k] + (ph.feet_yaw_to[k] - ph.feet_yaw_from[k]) * u;
+                (feet, yaw)
             }
-            _ => from,
+            _ => (from, ph.feet_yaw_from),
         }
     }
 
@@ -608,17 +662,22 @@ impl GaitPlanner {
             1.0
         };
         let r = min_jerk(p);
-        let feet = self.swing_feet(p);
+        let (feet, feet_yaw) = self.swing_feet(p);
         let base_z = ph.base_z_from + (ph.base_z_to - ph.base_z_from) * r;
+        let base_yaw = ph.base_yaw_from + (ph.base_yaw_to - ph.base_yaw_from) * r;
         let lerp = |a: Xy, b: Xy| [a[0] + (b[0] - a[0]) * r, a[1] + (b[1] - a[1]) * r];
         let posture = match ph.drive {
-            Drive::Base { from, to } => self.posture(lerp(from, to), base_z, &feet)?,
-            Drive::Com { from, to } => self.posture_for_com(lerp(from, to), base_z, &feet)?,
+            Drive::Base { from, to } => {
+                self.posture(lerp(from, to), base_z, base_yaw, &feet, &feet_yaw)?
+            }
+            Drive::Com { from, to } => {
+                self.posture_for_com(lerp(from, to), base_z, base_yaw, &feet, &feet_yaw)?
+            }
         };
         self.base_xy = [posture.base.translation.x, posture.base.translation.y];
         self.com_xy = [posture.com.x, posture.com.y];
         let support = ph.support();
-        let poly = self.support_polygon(support, &feet);
+        let poly = self.support_polygon(support, &feet, &feet_yaw);
         self.planted = match (ph.kind, ph.side) {
             (PhaseKind::Shift, Some(onto)) => onto,
             (kind, Some(swing)) if kind.is_swing() => swing.other(),
@@ -633,6 +692,7 @@ impl GaitPlanner {
             progress: p,
             base_world: posture.base,
             ankles_world_m: feet,
+            feet_yaw_rad: feet_yaw,
             targets: posture.targets,
             joints_rad: posture.q,
             com_world_m: posture.com,
@@ -665,6 +725,10 @@ impl GaitPlanner {
     fn advance(&mut self) {
         let ended = self.phase.clone();
         let feet = ended.feet_to;
+        let feet_yaw = ended.feet_yaw_to;
+        let yaw_now = ended.base_yaw_to;
+        // The pelvis faces between the feet once both are down.
+        let yaw_between = (feet_yaw[0] + feet_yaw[1]) / 2.0;
         let start_s = ended.end_s();
         // Count the swing that just landed before taking a request, so a new `Steps(n)`
         // counts from the next swing.
@@ -674,7 +738,8 @@ impl GaitPlanner {
             *n = n.saturating_sub(1);
         }
         self.take_request();
-        let stance_centre = |me: &Self, s: Side| me.sole_centre(s, &feet[s.index()]);
+        let stance_centre =
+            |me: &Self, s: Side| me.sole_centre(s, &feet[s.index()], feet_yaw[s.index()]);
         let z = self.walk_base_z();
         let com_now = self.com_xy;
         let next = match ended.kind {
@@ -688,14 +753,15 @@ impl GaitPlanner {
                         Some((PhaseKind::Center, None))
                     }
                 } else {
-                    // Feet level: a side step starts with the foot on the side of travel,
-                    // the only one that can open.
-                    if self.stride.left_m != 0.0 {
-                        self.next_swing = if self.stride.left_m > 0.0 {
-                            Side::Left
-                        } else {
-                            Side::Right
-                        };
+                    // Feet level: a side step (or a turn) starts with the foot on the side
+                    // of travel (of the turn), the only one that can open.
+                    let lead = if self.stride.left_m != 0.0 {
+                        self.stride.left_m
+                    } else {
+                        self.stride.turn_rad
+                    };
+                    if lead != 0.0 {
+                        self.next_swing = if lead > 0.0 { Side::Left } else { Side::Right };
                     }
                     Some((PhaseKind::Shift, Some(self.next_swing.other())))
                 }
@@ -731,8 +797,12 @@ impl GaitPlanner {
                 step_index: ended.step_index,
                 feet_from: feet,
                 feet_to: feet,
+                feet_yaw_from: feet_yaw,
+                feet_yaw_to: feet_yaw,
                 base_z_from: ended.base_z_to,
                 base_z_to: ended.base_z_to,
+                base_yaw_from: yaw_now,
+                base_yaw_to: yaw_now,
                 drive: Drive::Base {
                     from: self.base_xy,
                     to: self.base_xy,
@@ -750,8 +820,12 @@ impl GaitPlanner {
             step_index: ended.step_index,
             feet_from: feet,
             feet_to: feet,
+            feet_yaw_from: feet_yaw,
+            feet_yaw_to: feet_yaw,
             base_z_from: z,
             base_z_to: z,
+            base_yaw_from: yaw_now,
+            base_yaw_to: yaw_now,
             drive: Drive::Base {
                 from: self.base_xy,
                 to: self.base_xy,
@@ -768,7 +842,12 @@ impl GaitPlanner {
                 phase.duration_s = cfg.crouch_duration_s;
                 if kind == PhaseKind::Rise {
                     // Straight legs reach only straight down: end with the hips over the ankles.
-                    let mid = Self::hips_mid(&self.model);
+                    let mid = if yaw_now == 0.0 {
+                        Self::hips_mid(&self.model)
+                    } else {
+                        UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_now)
+                            * Self::hips_mid(&self.model)
+                    };
                     let over = [
                         (feet[0].x + feet[1].x) / 2.0 - mid.x,
                         (feet[0].y + feet[1].y) / 2.0 - mid.y,
@@ -789,6 +868,8 @@ impl GaitPlanner {
                     from: com_now,
                     to: stance_centre(self, onto),
                 };
+                // The stance hip unwinds: the pelvis turns to face between the feet.
+                phase.base_yaw_to = yaw_between;
             }
             PhaseKind::HalfStep | PhaseKind::Step | PhaseKind::FinalHalfStep => {
                 let swing = side.unwrap_or(Side::Left);
@@ -798,8 +879,11 @@ impl GaitPlanner {
                     _ => self.stride,
                 };
                 let mut to = feet;
-                to[swing.index()] = self.landing(&feet, swing, stride);
+                let mut to_yaw = feet_yaw;
+                (to[swing.index()], to_yaw[swing.index()]) =
+                    self.landing(&feet, &feet_yaw, swing, stride);
                 phase.feet_to = to;
+                phase.feet_yaw_to = to_yaw;
                 phase.duration_s = cfg.step_duration_s;
                 phase.step_index = ended.step_index + 1;
                 let c = stance_centre(self, stance);
@@ -819,6 +903,7 @@ impl GaitPlanner {
                     from: com_now,
                     to: mid,
                 };
+                phase.base_yaw_to = yaw_between;
                 self.next_swing = cfg.first_foot;
             }
             PhaseKind::Idle => {}
