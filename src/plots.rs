@@ -124,14 +124,16 @@ pub(crate) fn planted_footprints(planner: &GaitPlanner, samples: &[GaitSample]) 
             if (a.z - floor_z_m[side.index()]).abs() > ON_FLOOR_TOL_M {
                 continue;
             }
-            // Footprints closer than a micrometre are the same footprint.
+            // Footprints closer than a micrometre (and a microradian) are the same footprint.
+            let yaw = s.feet_yaw_rad[side.index()];
             let key = (
                 side.index(),
                 (a.x * 1e6).round() as i64,
                 (a.y * 1e6).round() as i64,
+                (yaw * 1e6).round() as i64,
             );
             if seen.insert(key) {
-                let corners_m = planner.model().leg(side).sole.corners([a.x, a.y], 0.0);
+                let corners_m = planner.model().leg(side).sole.corners([a.x, a.y], yaw);
                 out.push(Footprint {
                     side,
                     corners_m,
@@ -222,10 +224,11 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
     let cfg = planner.config();
     let stride = planner.stride();
     let title = format!(
-        "Top view: {} of {:.0} mm forward, {:.0} mm left, minimum CoM margin {:.1} mm (required {:.1} mm)",
+        "Top view: {} of {:.0} mm forward, {:.0} mm left, {:.1}° turn, minimum CoM margin {:.1} mm (required {:.1} mm)",
         steps_text(step_count(samples)),
         stride.forward_m * 1e3,
         stride.left_m * 1e3,
+        stride.turn_rad.to_degrees(),
         min_margin_m(samples) * 1e3,
         cfg.min_com_margin_m * 1e3
     );

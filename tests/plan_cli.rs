@@ -396,3 +396,30 @@ fn twist_walks_sideways_and_backward() {
     fails_naming(&["plan", "--twist", "0,1", "--csv", csv], &["vx,vy,wz"]);
     assert!(!Path::new(csv).exists(), "nothing written on error");
 }
+
+/// A robot with hip yaw joints turns: 4 steps of 0.03 rad/s x the 3 s step period = 0.09 rad
+/// per step end with the pelvis and both feet turned 0.36 rad (the side of the turn opens
+/// by twice the step at each of its swings, the other closes parallel).
+#[test]
+fn twist_turns_a_robot_with_hip_yaw() {
+    let dir = tmp("turn");
+    let csv_path = dir.join("plan.csv");
+    let robot = root().join("tests/data/biped6_renamed.urdf");
+    let out = biped(&[
+        "plan",
+        "--robot",
+        robot.to_str().unwrap(),
+        "--steps",
+        "4",
+        "--twist",
+        "0,0,0.03",
+        "--csv",
+        csv_path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{out:?}");
+    let csv = Csv::read(&csv_path);
+    let last = csv.rows.last().unwrap();
+    let yaw = csv.num(last, "base_yaw");
+    assert!((yaw - 4.0 * 0.09).abs() < 1e-9, "base_yaw {yaw}");
+    assert!(dir.join("top_view.svg").exists());
+}

@@ -74,6 +74,14 @@ pub enum GaitError {
         /// The previous time.
         previous_s: f64,
     },
+    /// The soles would overlap (collide or cross) at some tick of the check walk.
+    #[error("gait parameters refused: in phase `{phase}` at t = {t_s:.3} s the soles overlap")]
+    SolesOverlap {
+        /// The phase.
+        phase: PhaseKind,
+        /// When, from the start of the check walk.
+        t_s: f64,
+    },
     /// A step limit set by hand whose check walk fails.
     #[error(
         "gait parameter `{key}` = {value_m} m refused: the check walk at that step fails: {cause}"

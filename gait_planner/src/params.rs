@@ -27,6 +27,8 @@ pub mod auto {
     pub const BACK_STEP_PER_STEP: f64 = 1.0;
     /// Longest side step (sideways travel of the body per step), as a fraction of the leg.
     pub const SIDE_STEP_PER_LEG: f64 = 0.1;
+    /// Largest turn per step (rad) for robots with hip yaw joints.
+    pub const TURN_STEP_RAD: f64 = 0.15;
     /// An auto step limit whose check walk fails is lowered by this many bisections.
     pub const BISECTIONS: u32 = 6;
 }
@@ -47,6 +49,10 @@ pub struct GaitParams {
     /// the side of travel opens by twice this, the other closes back to the standing
     /// width. 0 = auto (0.1 x leg, lowered until the check walk passes).
     pub side_step_m: f64,
+    /// Largest turn per step (rad): the foot on the side of the turn turns by twice this,
+    /// the other comes back parallel. Needs hip yaw joints (0 on robots without). 0 = auto
+    /// (0.15 rad with hip yaw, lowered until the check walks pass).
+    pub turn_step_rad: f64,
     /// Duration of each swing (half and full steps) (s).
     pub step_duration_s: f64,
     /// Duration of each CoM shift and of the final centring (s).
@@ -78,6 +84,7 @@ impl Default for GaitParams {
             step_length_m: 0.0,
             back_step_length_m: 0.0,
             side_step_m: 0.0,
+            turn_step_rad: 0.0,
             step_duration_s: 1.0,
             shift_duration_s: 2.0,
             crouch_duration_s: 1.0,
@@ -242,6 +249,23 @@ impl GaitParams {
                 0.0,
                 0.3 * leg,
             )?,
+            turn_step_rad: {
+                let has_yaw = Side::BOTH.iter().all(|&s| model.leg(s).has_yaw());
+                if !has_yaw && self.turn_step_rad != 0.0 {
+                    return Err(GaitError::Param {
+                        key: "turn_step_rad",
+                        value: self.turn_step_rad,
+                        why: "this robot's legs have no hip yaw joint; leave it at 0".into(),
+                    });
+                }
+                let derived = if has_yaw { auto::TURN_STEP_RAD } else { 0.0 };
+                let v = if self.turn_step_rad == 0.0 {
+                    derived
+                } else {
+                    self.turn_step_rad
+                };
+                check("turn_step_rad", v, 0.0, 0.5, "rad (0 = auto)")?
+            },
             step_duration_s: check("step_duration_s", self.step_duration_s, 0.1, 60.0, "s")?,
             shift_duration_s: check("shift_duration_s", self.shift_duration_s, 0.1, 60.0, "s")?,
             crouch_duration_s: check("crouch_duration_s", self.crouch_duration_s, 0.1, 60.0, "s")?,

@@ -5,7 +5,7 @@
 //! World frame: on the floor at the midpoint between the feet of the initial pose, x forward,
 //! y left, z up. The pelvis is kept level and facing +x.
 
-use ik_solver::support::{Xy, convex_hull, signed_margin};
+use ik_solver::support::{Xy, convex_hull, convex_overlap, signed_margin};
 use ik_solver::{AnkleTarget, BipedModel, IkIssue, Side, StaticPose};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
@@ -209,6 +209,34 @@ impl GaitPlanner {
             },
         )?;
         self.cfg.side_step_m = side;
+        if self.cfg.turn_step_rad > 0.0 {
+            let turn = self.settle_limit(
+                "turn_step_rad",
+                params.turn_step_rad == 0.0,
+                self.cfg.turn_step_rad,
+                |v| {
+                    [1.0, -1.0]
+                        .into_iter()
+                        .flat_map(|sign| {
+                            let t = sign * v;
+                            // A turn in place, an arc, and a turn with a side step either way.
+                            [
+                                (0.0, 0.0, 1.0),
+                                (fwd, 0.0, diag),
+                                (0.0, side, diag),
+                                (0.0, -side, diag),
+                            ]
+                            .map(|(x, y, k)| Stride {
+                                forward_m: x * k,
+                                left_m: y * k,
+                                turn_rad: t * k,
+                            })
+                        })
+                        .collect()
+                },
+            )?;
+            self.cfg.turn_step_rad = turn;
+        }
         self.stride = Stride::forward(self.cfg.step_length_m);
         Ok(())
     }
@@ -258,26 +286,28 @@ impl GaitPlanner {
         let within = |v: f64, lo: f64, hi: f64| {
             v.is_finite() && v >= lo - 1e-9 * lo.abs() && v <= hi + 1e-9 * hi.abs()
         };
-        for (field, v, lo, hi) in [
+        for (field, v, lo, hi, unit) in [
             (
                 "forward_m",
                 stride.forward_m,
                 -c.back_step_length_m,
                 c.step_length_m,
+                "m",
             ),
-            ("left_m", stride.left_m, -c.side_step_m, c.side_step_m),
+            ("left_m", stride.left_m, -c.side_step_m, c.side_step_m, "m"),
+            (
+                "turn_rad",
+                stride.turn_rad,
+                -c.turn_step_rad,
+                c.turn_step_rad,
+                "rad",
+            ),
         ] {
             if !within(v, lo, hi) {
                 return Err(GaitError::Request(format!(
-                    "stride {field} = {v} m is outside [{lo}, {hi}] m (step_length_m, back_step_length_m, side_step_m)"
+                    "stride {field} = {v} {unit} is outside [{lo}, {hi}] {unit} (step_length_m, back_step_length_m, side_step_m, turn_step_rad)"
                 )));
             }
-        }
-        if stride.turn_rad != 0.0 {
-            return Err(GaitError::Request(format!(
-                "stride turn_rad = {} rad: turning is not walked yet",
-                stride.turn_rad
-            )));
         }
         self.stride = stride;
         Ok(())
@@ -337,6 +367,17 @@ impl GaitPlanner {
             last_t_s: f64::NEG_INFINITY,
             poses: Vec::new(),
         }
+    }
+
+    /// True when the soles, each turned to its heading, share area.
+    fn soles_overlap(&self, ankles: &[Point3<f64>; 2], feet_yaw: &[f64; 2]) -> bool {
+        let sole = |s: Side| {
+            self.model.leg(s).sole.corners(
+                [ankles[s.index()].x, ankles[s.index()].y],
+                feet_yaw[s.index()],
+            )
+        };
+        convex_overlap(&sole(Side::Left), &sole(Side::Right))
     }
 
     /// Changes the parameters between walks, after the same check as [`Self::new`]. Refused
@@ -926,6 +967,12 @@ impl GaitPlanner {
                     phase: s.phase,
                     t_s: s.t_s,
                     issue: issue.to_string(),
+                });
+            }
+            if self.soles_overlap(&s.ankles_world_m, &s.feet_yaw_rad) {
+                return Err(GaitError::SolesOverlap {
+                    phase: s.phase,
+                    t_s: s.t_s,
                 });
             }
             if s.margin_m < self.cfg.min_com_margin_m {

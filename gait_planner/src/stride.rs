@@ -19,7 +19,8 @@ pub struct Stride {
     pub forward_m: f64,
     /// Sideways travel per step (m); positive to the left.
     pub left_m: f64,
-    /// Turn per step (rad), counter-clockwise. Needs hip yaw joints; not walked yet.
+    /// Turn per step (rad), counter-clockwise, on average: the foot on the side of the turn
+    /// turns by twice this, the other comes back parallel to it. Needs hip yaw joints.
     pub turn_rad: f64,
 }
 
@@ -62,11 +63,11 @@ pub struct StrideCommand {
 
 impl GaitConfig {
     /// Converts a velocity into a stride per step, scaled down (keeping its direction) into
-    /// the ellipse of the per-axis limits: `step_length_m` forward, `back_step_length_m`
-    /// backward, `side_step_m` sideways, each per step.
+    /// the ellipsoid of the per-axis limits: `step_length_m` forward, `back_step_length_m`
+    /// backward, `side_step_m` sideways, `turn_step_rad` turning, each per step.
     ///
-    /// Refused, naming the field and value: a value that is not finite, and a turn rate
-    /// (turning is not walked yet; on a robot without hip yaw joints it never will be).
+    /// Refused, naming the field and value: a value that is not finite, and a turn rate on
+    /// a robot without hip yaw joints (or whose turn limit is 0).
     pub fn stride_for(&self, v: Velocity, has_hip_yaw: bool) -> Result<StrideCommand, GaitError> {
         for (field, value) in [
             ("linear.x", v.x_m_s),
@@ -79,9 +80,9 @@ impl GaitConfig {
                 )));
             }
         }
-        if v.yaw_rad_s != 0.0 {
+        if v.yaw_rad_s != 0.0 && (!has_hip_yaw || self.turn_step_rad <= 0.0) {
             let why = if has_hip_yaw {
-                "turning is not implemented yet"
+                "turn_step_rad is 0 (no turn passed the check walks)"
             } else {
                 "this robot's legs have no hip yaw joint, so it cannot turn"
             };
@@ -94,7 +95,7 @@ impl GaitConfig {
         let want = Stride {
             forward_m: v.x_m_s * period,
             left_m: v.y_m_s * period,
-            turn_rad: 0.0,
+            turn_rad: v.yaw_rad_s * period,
         };
         let x_max = if want.forward_m >= 0.0 {
             self.step_length_m
@@ -104,17 +105,18 @@ impl GaitConfig {
         // An axis whose limit is 0 cannot move at all; then the ellipse of the limits.
         let ratio = |value: f64, max: f64| if max > 0.0 { value / max } else { 0.0 };
         let axis = |value: f64, max: f64| if max > 0.0 { value } else { 0.0 };
-        let (rx, ry) = (
+        let (rx, ry, rz) = (
             ratio(want.forward_m, x_max),
             ratio(want.left_m, self.side_step_m),
+            ratio(want.turn_rad, self.turn_step_rad),
         );
         // A command on a limit stays on it (not a part per billion beyond, from rounding).
-        let reach = rx.hypot(ry);
+        let reach = rx.hypot(ry).hypot(rz);
         let scale = if reach <= 1.0 + 1e-9 { 1.0 } else { reach };
         let stride = Stride {
             forward_m: axis(want.forward_m, x_max) / scale,
             left_m: axis(want.left_m, self.side_step_m) / scale,
-            turn_rad: 0.0,
+            turn_rad: axis(want.turn_rad, self.turn_step_rad) / scale,
         };
         if stride == want {
             return Ok(StrideCommand {
@@ -127,7 +129,7 @@ impl GaitConfig {
             limited_to: Some(Velocity {
                 x_m_s: stride.forward_m / period,
                 y_m_s: stride.left_m / period,
-                yaw_rad_s: 0.0,
+                yaw_rad_s: stride.turn_rad / period,
             }),
         })
     }

@@ -303,3 +303,127 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn a_turn_in_place_turns_the_feet_about_the_point_between_them() {
+    // The six-joint robot (hip yaw): 2 steps of 0.1 rad. The left foot (the side of the
+    // turn) turns by 0.2 rad about the point between the feet, the right comes back
+    // parallel; the closing half step has nothing left to do.
+    let mut planner = GaitPlanner::new(biped6_model(), GaitParams::default()).unwrap();
+    planner
+        .set_stride(Stride {
+            turn_rad: 0.1,
+            ..Stride::default()
+        })
+        .unwrap();
+    let samples = planner.plan(WalkRequest::Steps(2)).unwrap();
+    let [l0, r0] = samples[0].ankles_world_m;
+    let mid0 = nalgebra::center(&l0, &r0);
+    let half = (l0.y - r0.y) / 2.0;
+    let land = landings(&samples);
+    assert_eq!(
+        land[0].0,
+        Side::Left,
+        "the foot on the side of the turn first"
+    );
+    // Left: the midpoint plus half the width at 0.2 rad.
+    let (s, c) = 0.2f64.sin_cos();
+    assert!(
+        close(&land[0].1, mid0.x - s * half, mid0.y + c * half),
+        "{:?}",
+        land[0]
+    );
+    assert!(
+        close(&land[1].1, mid0.x + s * half, mid0.y - c * half),
+        "{:?}",
+        land[1]
+    );
+    let end = samples.last().unwrap();
+    assert!(
+        end.feet_yaw_rad.iter().all(|y| (y - 0.2).abs() < 1e-12),
+        "{:?}",
+        end.feet_yaw_rad
+    );
+    let (_, _, base_yaw) = end.base_world.rotation.euler_angles();
+    assert!((base_yaw - 0.2).abs() < 1e-9, "pelvis heading {base_yaw}");
+    // No swing foot ever touched the other sole; every tick kept the CoM margin.
+    assert!(samples.iter().all(|s| s.issues.is_empty()));
+}
+
+#[test]
+fn the_robot_without_hip_yaw_refuses_a_turn_limit_by_name() {
+    let e = GaitPlanner::new(
+        default_model(),
+        GaitParams {
+            turn_step_rad: 0.1,
+            ..GaitParams::default()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("turn_step_rad") && e.contains("no hip yaw"),
+        "{e}"
+    );
+}
+
+/// True when a corner of either sole lies inside the other (turned rectangles).
+fn corners_inside(model: &ik_solver::BipedModel, s: &GaitSample) -> bool {
+    let rect = |side: Side| {
+        let a = s.ankles_world_m[side.index()];
+        model
+            .leg(side)
+            .sole
+            .corners([a.x, a.y], s.feet_yaw_rad[side.index()])
+    };
+    let (l, r) = (rect(Side::Left), rect(Side::Right));
+    l.iter()
+        .any(|&p| ik_solver::support::signed_margin(&r, p) > 1e-12)
+        || r.iter()
+            .any(|&p| ik_solver::support::signed_margin(&l, p) > 1e-12)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 8, ..ProptestConfig::default() })]
+
+    /// The six-joint robot walking any sequence of strides with turns, arcs and side steps
+    /// within its limits: at every tick no joint is clamped, the CoM keeps its margin, and
+    /// no corner of a sole enters the other.
+    #[test]
+    fn random_turning_sequences_keep_the_soles_apart_and_the_com_inside(
+        strides in prop::collection::vec((-1.0f64..=1.0, -1.0f64..=1.0, -1.0f64..=1.0), 2..5),
+    ) {
+        let model = biped6_model();
+        let p = GaitParams { control_rate_hz: 20.0, ..GaitParams::default() };
+        let mut planner = GaitPlanner::new(model.clone(), p).unwrap();
+        let c = planner.config().clone();
+        let stride_of = |(fx, ly, tz): (f64, f64, f64)| {
+            let k = (fx * fx + ly * ly + tz * tz).sqrt().max(1.0);
+            let x = if fx >= 0.0 { c.step_length_m } else { c.back_step_length_m };
+            Stride { forward_m: fx / k * x, left_m: ly / k * c.side_step_m, turn_rad: tz / k * c.turn_step_rad }
+        };
+        planner.set_stride(stride_of(strides[0])).unwrap();
+        planner.request(WalkRequest::UntilStop);
+        let (mut next, mut last_step, mut k) = (1, 0, 0u32);
+        loop {
+            let s = planner.update(f64::from(k) / 20.0).unwrap();
+            k += 1;
+            prop_assert!(s.issues.is_empty(), "t = {}: {:?}", s.t_s, s.issues);
+            prop_assert!(s.margin_m >= c.min_com_margin_m - 1e-12, "t = {}: margin {}", s.t_s, s.margin_m);
+            prop_assert!(!corners_inside(&model, &s), "t = {} ({}): the soles overlap", s.t_s, s.phase);
+            if s.step_index != last_step {
+                last_step = s.step_index;
+                if next < strides.len() {
+                    planner.set_stride(stride_of(strides[next])).unwrap();
+                    next += 1;
+                } else {
+                    planner.request(WalkRequest::Stop);
+                }
+            }
+            if s.phase == PhaseKind::Idle && k > 2 {
+                break;
+            }
+            prop_assert!(k < 100_000, "the walk never ended");
+        }
+    }
+}

@@ -79,3 +79,25 @@ pub fn signed_margin(poly: &[Xy], p: Xy) -> f64 {
             .fold(f64::INFINITY, f64::min)
     }
 }
+
+/// True when two convex polygons (either winding) share interior area: no edge normal of
+/// either separates their projections (the separating-axis theorem). Touching edges do not
+/// count as overlap.
+pub fn convex_overlap(a: &[Xy], b: &[Xy]) -> bool {
+    let separated_by_edges_of = |p: &[Xy]| {
+        (0..p.len()).any(|i| {
+            let (u, v) = (p[i], p[(i + 1) % p.len()]);
+            let n = [-(v[1] - u[1]), v[0] - u[0]];
+            let span = |q: &[Xy]| {
+                q.iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), c| {
+                        let d = n[0] * c[0] + n[1] * c[1];
+                        (lo.min(d), hi.max(d))
+                    })
+            };
+            let ((a0, a1), (b0, b1)) = (span(a), span(b));
+            a1 <= b0 || b1 <= a0
+        })
+    };
+    !(separated_by_edges_of(a) || separated_by_edges_of(b))
+}

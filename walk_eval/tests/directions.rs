@@ -106,3 +106,80 @@ fn the_six_joint_robot_walks_back_a_tenth_of_a_metre() {
     let r = walk(BIPED6, Stride::forward(-0.025), 4, [-0.1, 0.0]);
     assert_followed(&r);
 }
+
+/// Plans and plays a walk of the six-joint robot; returns the report and the plan's final
+/// pelvis heading (deg).
+fn walk6(stride: Stride, steps: u32) -> (WalkReport, f64) {
+    let model = BipedModel::from_urdf_str(BIPED6, None).unwrap();
+    let mut planner = GaitPlanner::new(model, GaitParams::default()).unwrap();
+    planner.set_stride(stride).unwrap();
+    let plan = planner.plan(WalkRequest::Steps(steps)).unwrap();
+    let (_, _, yaw) = plan.last().unwrap().base_world.rotation.euler_angles();
+    let mut sim = Sim::from_urdf_str(BIPED6, None, &SimConfig::default()).unwrap();
+    let r = run_plan(&mut sim, &plan, &PlayOptions::default()).unwrap();
+    eprintln!("{r:#?}");
+    (r, yaw.to_degrees())
+}
+
+fn assert_stood(r: &WalkReport) {
+    assert!(r.fell.is_none(), "fell: {:?}", r.fell);
+    assert!(
+        r.cop_inside_fraction >= 0.99,
+        "CoP inside {}",
+        r.cop_inside_fraction
+    );
+    assert!(r.max_foot_slip_m < 0.005, "slip {} m", r.max_foot_slip_m);
+    assert!(r.max_tilt_deg < 10.0, "tilt {} deg", r.max_tilt_deg);
+}
+
+#[test]
+fn the_six_joint_robot_turns_on_the_spot_by_ninety_degrees() {
+    // 12 steps of pi/24: the left foot turns by pi/12 six times, the right follows.
+    let (r, planned_deg) = walk6(
+        Stride {
+            turn_rad: std::f64::consts::PI / 24.0,
+            ..Stride::default()
+        },
+        12,
+    );
+    assert!(
+        (planned_deg - 90.0).abs() < 1e-6,
+        "the plan turns {planned_deg} deg"
+    );
+    assert_stood(&r);
+    assert!(
+        (r.final_heading_deg - 90.0).abs() <= 9.0,
+        "turned {} deg of 90",
+        r.final_heading_deg
+    );
+    let drift = r.distance_m.hypot(r.left_m);
+    assert!(drift < 0.03, "the base drifted {drift} m");
+}
+
+#[test]
+fn the_six_joint_robot_walks_an_arc() {
+    // Forward 30 mm and left 0.1 rad per step, 8 steps: 0.24 m and 45.8 deg in the plan.
+    let (r, planned_deg) = walk6(
+        Stride {
+            forward_m: 0.03,
+            turn_rad: 0.1,
+            ..Stride::default()
+        },
+        8,
+    );
+    assert_stood(&r);
+    assert!(planned_deg > 40.0, "{planned_deg}");
+    assert!(
+        (r.final_heading_deg - planned_deg).abs() <= 0.1 * planned_deg,
+        "turned {} deg, the plan {planned_deg}",
+        r.final_heading_deg
+    );
+    let (got, want) = (
+        r.distance_m.hypot(r.left_m),
+        r.planned_distance_m.hypot(r.planned_left_m),
+    );
+    assert!(
+        (got - want).abs() <= 0.1 * want,
+        "moved {got} m, the plan {want} m"
+    );
+}
