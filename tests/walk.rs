@@ -1,6 +1,6 @@
 //! `biped walk`, the main job: the fleet (gait_planner, ik_solver, joint_bridge with the sim
 //! backend) and sim_bridge (MuJoCo) over DDS, in lockstep on simulated time. Each run is in a
-//! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 65-69), with
+//! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 65-69, 75, 76), with
 //! discovery restricted to this host by `biped walk` itself.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -169,6 +169,62 @@ fn the_fleet_side_steps_and_walks_back_from_a_twist() {
         // Leg odometry of the measured joints against the simulator's ground truth: within
         // 10 % of the 0.1 m walked, heading within 5 deg.
         assert!(num(&r, "odometry_error_m") < 0.01, "{name}");
+        assert!(num(&r, "odometry_yaw_error_deg") < 5.0, "{name}");
+    }
+}
+
+/// The six-joint test robot (hip yaw) through the whole fleet in physics: a turn on the
+/// spot by +90 deg (12 steps of pi/24 rad: pi/36 rad/s x the 3 s step period) and an arc
+/// (30 mm and 0.1 rad per step, 8 steps). Heading within 10 % of the plan, the turn's base
+/// drift under 3 cm, no fall, CoP inside >= 99 %, slip < 5 mm; leg odometry within 10 % of
+/// the distance walked (the turn: 1 cm) and 5 deg of the true base.
+#[test]
+fn the_fleet_turns_the_six_joint_robot_on_the_spot_and_in_an_arc() {
+    let robot = common::root().join("tests/data/biped6_renamed.urdf");
+    let robot = robot.to_str().unwrap();
+    for (domain, name, steps, twist, want_deg) in [
+        (
+            75,
+            "turn",
+            "12",
+            format!("0,0,{}", std::f64::consts::PI / 72.0),
+            90.0,
+        ),
+        (76, "arc", "8", format!("0.01,0,{}", 0.1 / 3.0), 45.84),
+    ] {
+        let out = out_dir(name);
+        let twist_arg = format!("--twist={twist}");
+        let run = walk(
+            domain,
+            &out,
+            &["--robot", robot, "--steps", steps, &twist_arg],
+        );
+        assert!(
+            run.status.success(),
+            "biped walk {name} failed:\n{}\n{}",
+            String::from_utf8_lossy(&run.stdout),
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let r = report(&out);
+        eprintln!("{name}: {}", serde_json::to_string_pretty(&r).unwrap());
+        assert!(r["fell"].is_null(), "{name}: the robot fell: {}", r["fell"]);
+        let heading = num(&r, "final_heading_deg");
+        assert!(
+            (heading - want_deg).abs() <= 0.1 * want_deg,
+            "{name}: turned {heading} deg of {want_deg}"
+        );
+        assert!(num(&r, "cop_inside_fraction") >= 0.99, "{name}");
+        assert!(num(&r, "max_foot_slip_m") < 0.005, "{name}");
+        assert!(num(&r, "max_tilt_deg") < 10.0, "{name}");
+        let moved = num(&r, "distance_m").hypot(num(&r, "left_m"));
+        if name == "turn" {
+            assert!(moved < 0.03, "turn: the base drifted {moved} m");
+        }
+        assert!(
+            num(&r, "odometry_error_m") < (0.1 * moved).max(0.01),
+            "{name}: odometry {} m off after {moved} m",
+            num(&r, "odometry_error_m")
+        );
         assert!(num(&r, "odometry_yaw_error_deg") < 5.0, "{name}");
     }
 }
