@@ -421,3 +421,79 @@ fn an_rclpy_peer_watches_and_walks_the_simulated_robot_in_real_time() {
         "double-support polygons: {sizes:?}"
     );
 }
+
+/// A teleop over /cmd_vel drives the six-joint robot (hip yaw) in the simulator at real
+/// time: it turns left (0.03 rad/s: 0.09 rad per 3 s step, the left foot turning 0.18 rad
+/// about the point between the feet, the right coming back parallel), the command changes
+/// to forward (10 mm/s: 30 mm per step) after two swings, then the Twists stop. The robot
+/// follows both commands in physics, the walk ends by itself, nothing falls, and /odom
+/// agrees with the simulator's ground truth.
+#[test]
+fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
+    let v = peer("teleop_sim", 65);
+    assert_eq!(v["nodes_seen"], true);
+    assert_eq!(v["flowing"], true);
+    assert_eq!(v["matched"], true);
+    assert_eq!(
+        v["finished"], true,
+        "the walk did not end: {}",
+        v["launcher_stderr"]
+    );
+    assert_eq!(v["launcher_returncode"], 0, "{}", v["launcher_stderr"]);
+    assert!(v["falls"].as_array().unwrap().is_empty(), "{}", v["falls"]);
+    let yaw = |p: &Value| 2.0 * p["qz"].as_f64().unwrap().atan2(p["qw"].as_f64().unwrap());
+    let xy = |p: &Value| [p["x"].as_f64().unwrap(), p["y"].as_f64().unwrap()];
+    let base = v["base"].as_array().unwrap();
+    let odom = v["odom"].as_array().unwrap();
+    assert!(odom.len() > 100, "{} odom messages", odom.len());
+    // The walk's first and last ticks, by the phase stamps.
+    let phases = v["phases"].as_array().unwrap();
+    let walk: Vec<i64> = phases
+        .iter()
+        .filter(|p| p["phase"] != "idle")
+        .map(|p| p["stamp"].as_i64().unwrap())
+        .collect();
+    let (t0, t1) = (walk[0], *walk.last().unwrap());
+    let at = |msgs: &[Value], t: i64| -> Value {
+        msgs.iter()
+            .filter(|m| m["stamp"].as_i64().unwrap() <= t)
+            .last()
+            .cloned()
+            .unwrap_or_else(|| msgs[0].clone())
+    };
+    let (b0, b1) = (at(base, t0), at(base, t1 + 2_000_000_000));
+    let turned = yaw(&b1) - yaw(&b0);
+    // Two turning swings: the left foot turned 0.18 rad, the pelvis followed.
+    assert!(
+        (turned - 0.18).abs() <= 0.018,
+        "turned {turned} rad, commanded 0.18 (swings {})",
+        v["swings_turning"]
+    );
+    // Then forward along the new heading.
+    let d = [xy(&b1)[0] - xy(&b0)[0], xy(&b1)[1] - xy(&b0)[1]];
+    let (s, c) = yaw(&b1).sin_cos();
+    let along = c * d[0] + s * d[1];
+    assert!(along > 0.06, "moved {along} m along the new heading, {d:?}");
+    // Odometry against ground truth, as displacements over the walk.
+    let (o0, o1) = (at(odom, t0), at(odom, t1 + 2_000_000_000));
+    let od = [xy(&o1)[0] - xy(&o0)[0], xy(&o1)[1] - xy(&o0)[1]];
+    let err = (od[0] - d[0]).hypot(od[1] - d[1]);
+    let moved = d[0].hypot(d[1]);
+    assert!(
+        err < 0.1 * moved + 0.005,
+        "odometry {err} m off after {moved} m"
+    );
+    let yaw_err = ((yaw(&o1) - yaw(&o0)) - turned).abs().to_degrees();
+    eprintln!(
+        "turned {turned} rad, {along} m along the new heading; odometry {err} m and {yaw_err} deg off"
+    );
+    assert!(yaw_err < 5.0, "odometry heading {yaw_err} deg off");
+    assert!(
+        rosout_has(
+            &v,
+            "gait_planner",
+            &["no command for 0.5 s", "ending the walk"]
+        ),
+        "no timeout message"
+    );
+}

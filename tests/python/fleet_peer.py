@@ -410,10 +410,72 @@ def scenario_sim(bin_dir, params):
     return out
 
 
+def scenario_teleop_sim(bin_dir, params):
+    """A teleop driving the six-joint robot in the simulator (`biped launch --backend sim
+    --robot`, real time): Twists at 10 Hz to turn left, then, two swings later, to walk
+    forward, then none: the walk must end by itself. Records the ground truth and /odom."""
+    from geometry_msgs.msg import PoseStamped
+    from nav_msgs.msg import Odometry
+    from std_msgs.msg import String
+
+    biped = os.path.join(bin_dir, "biped")
+    robot = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "data", "biped6_renamed.urdf")
+    log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test") + "-teleop-sim"
+    peer = Peer()
+    n = peer.node
+    qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+    base, odom, falls = [], [], []
+    n.create_subscription(PoseStamped, "/sim/base_pose", lambda m: base.append(
+        {"stamp": stamp_ns(m.header), "x": m.pose.position.x, "y": m.pose.position.y,
+         "qz": m.pose.orientation.z, "qw": m.pose.orientation.w}), qos)
+    n.create_subscription(Odometry, "/odom", lambda m: odom.append(
+        {"stamp": stamp_ns(m.header), "x": m.pose.pose.position.x, "y": m.pose.pose.position.y,
+         "qz": m.pose.pose.orientation.z, "qw": m.pose.pose.orientation.w}), qos)
+    n.create_subscription(String, "/sim/fall", lambda m: falls.append(m.data), qos)
+    peer.spin(1.0)
+    launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--robot", robot, "--log-dir", log_dir],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    global NODES
+    NODES = NODES + ["sim_bridge"]
+    out = {"nodes_seen": peer.wait_for_nodes(60.0)}
+    out["flowing"] = peer.spin(60.0, lambda: len(peer.states) > 20 and len(base) > 20)
+    out["matched"] = peer.wait_for_subscribers(peer.cmd_vel_pub, 20.0)
+
+    def swings():
+        return {(p["step"], p["support"]) for p in peer.phases if p["phase"] in ("half_step", "step")}
+
+    def stream(twist, until, timeout):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and not until():
+            peer.cmd_vel_pub.publish(twist)
+            peer.spin(0.1)
+
+    turn = Twist()
+    turn.angular.z = 0.03
+    stream(turn, lambda: len(swings()) >= 2, 60.0)
+    out["swings_turning"] = sorted(list(s) for s in swings())
+    ahead = Twist()
+    ahead.linear.x = 0.01
+    stream(ahead, lambda: len(swings()) >= 5, 60.0)
+    out["finished"] = peer.spin(60.0, peer.idle_after_walking)
+    peer.spin(1.0)
+    out.update(phases=peer.phases, base=base, odom=odom, falls=falls, rosout=peer.rosout)
+    launcher.send_signal(signal.SIGINT)
+    try:
+        _, stderr = launcher.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        launcher.kill()
+        _, stderr = launcher.communicate()
+    out["launcher_returncode"] = launcher.returncode
+    out["launcher_stderr"] = stderr[-2000:]
+    return out
+
+
 def main():
     scenario, bin_dir = sys.argv[1], sys.argv[2]
     params = sys.argv[3] if len(sys.argv) > 3 else None
-    result = {"walk": scenario_walk, "teleop": scenario_teleop, "watchdog": scenario_watchdog,
+    result = {"walk": scenario_walk, "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
+              "watchdog": scenario_watchdog,
               "launch": scenario_launch,
               "sim": scenario_sim}[scenario](bin_dir, params)
     json.dump(result, sys.stdout)
