@@ -456,8 +456,8 @@ fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
     let (t0, t1) = (walk[0], *walk.last().unwrap());
     let at = |msgs: &[Value], t: i64| -> Value {
         msgs.iter()
-            .filter(|m| m["stamp"].as_i64().unwrap() <= t)
-            .last()
+            .rev()
+            .find(|m| m["stamp"].as_i64().unwrap() <= t)
             .cloned()
             .unwrap_or_else(|| msgs[0].clone())
     };
