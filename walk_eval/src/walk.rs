@@ -172,6 +172,10 @@ pub struct WalkReport {
     pub planned_left_m: f64,
     /// The base's heading at the end, from the start, counter-clockwise (deg).
     pub final_heading_deg: f64,
+    /// How far the point between the feet moved, `[forward, left]` of the base's starting
+    /// heading (m): where the robot stands, whatever its posture (the crouched walking pose
+    /// holds the pelvis a little off the standing one).
+    pub feet_moved_m: [f64; 2],
     /// Largest horizontal drift of a foot while it carried the robot (m), over all stances.
     pub max_foot_slip_m: f64,
     /// Share of the physics steps with a centre of pressure in which it lay inside the
@@ -246,6 +250,8 @@ pub struct WalkMonitor {
     stance_start: [Option<[f64; 2]>; 2],
     max_slip_m: f64,
     fell: Option<FallReport>,
+    /// The point between the feet at the first and the last observation.
+    feet_mid: Option<([f64; 2], [f64; 2])>,
 }
 
 impl WalkMonitor {
@@ -267,6 +273,7 @@ impl WalkMonitor {
             stance_start: [None, None],
             max_slip_m: 0.0,
             fell: None,
+            feet_mid: None,
         }
     }
 
@@ -278,6 +285,12 @@ impl WalkMonitor {
     /// Takes one observation, made during `phase`.
     pub fn observe_state(&mut self, o: &Observation, phase: PhaseKind) {
         self.max_tilt_rad = self.max_tilt_rad.max(tilt_rad(&o.base));
+        let mid = [
+            (o.feet_xy_m[0][0] + o.feet_xy_m[1][0]) / 2.0,
+            (o.feet_xy_m[0][1] + o.feet_xy_m[1][1]) / 2.0,
+        ];
+        let first = self.feet_mid.map_or(mid, |(f, _)| f);
+        self.feet_mid = Some((first, mid));
         let heading = wrap_pi(yaw(&o.base) - yaw(&self.start_base)).abs();
         self.max_heading_rad = self.max_heading_rad.max(heading);
         if let Some(margin) = o.cop_margin_m {
@@ -347,6 +360,12 @@ impl WalkMonitor {
             left_m,
             planned_left_m: planned_m[1],
             final_heading_deg: wrap_pi(yaw(base) - yaw(&self.start_base)).to_degrees(),
+            feet_moved_m: self.feet_mid.map_or([0.0, 0.0], |(a, b)| {
+                let h = yaw(&self.start_base);
+                let (s, c) = h.sin_cos();
+                let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                [c * dx + s * dy, -s * dx + c * dy]
+            }),
             max_foot_slip_m: self.max_slip_m,
             cop_inside_fraction: if self.cop_samples > 0 {
                 self.cop_inside as f64 / self.cop_samples as f64
