@@ -268,22 +268,15 @@ fn thaw(registry: &[Entry], value: &Json, ty: &str, at: &str) -> Result<Yaml, St
             _ => wrong(),
         },
         _ => {
-            if let Some(element) = sequence_of(ty) {
+            // A sequence (any length) or a fixed array (exactly its length).
+            let list = sequence_of(ty)
+                .map(|e| (e, None))
+                .or_else(|| fixed_array_of(ty).map(|(e, n)| (e, Some(n))));
+            if let Some((element, len)) = list {
                 let Json::Array(items) = value else {
                     return wrong();
                 };
-                let items = items
-                    .iter()
-                    .enumerate()
-                    .map(|(i, v)| thaw(registry, v, element, &format!("{at}[{i}]")))
-                    .collect::<Result<Vec<_>, _>>()?;
-                return Ok(Yaml::Sequence(items));
-            }
-            if let Some((element, n)) = fixed_array_of(ty) {
-                let Json::Array(items) = value else {
-                    return wrong();
-                };
-                if items.len() != n {
+                if let Some(n) = len.filter(|&n| n != items.len()) {
                     return Err(format!(
                         "{at}: {ty} needs {n} values, the sample has {}",
                         items.len()

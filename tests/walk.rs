@@ -118,6 +118,26 @@ fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
 
 /// Without the joint bridge's sag compensation the hobby servos sag and the robot falls:
 /// `biped walk` says so, writes the fall into report.json and exits non-zero.
+/// `biped walk ARGS --twist=TWIST` in a private network namespace: it succeeded and the
+/// robot did not fall; its report.
+fn walk_twist(domain: u32, name: &str, args: &[&str], twist: &str) -> Value {
+    let out = out_dir(name);
+    let twist_arg = format!("--twist={twist}");
+    let mut all = args.to_vec();
+    all.push(&twist_arg);
+    let run = walk(domain, &out, &all);
+    assert!(
+        run.status.success(),
+        "biped walk {name} failed:\n{}\n{}",
+        String::from_utf8_lossy(&run.stdout),
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let r = report(&out);
+    eprintln!("{name}: {}", serde_json::to_string_pretty(&r).unwrap());
+    assert!(r["fell"].is_null(), "{name}: the robot fell: {}", r["fell"]);
+    r
+}
+
 /// `biped walk --twist`: the velocity rides in the walk command to the planner node, which
 /// turns it into strides as the offline plan does. 0.1 m to the left (6 steps of 1/60 m at
 /// the 3 s step period) and 0.1 m back (4 steps of 25 mm), each through the whole fleet in
@@ -136,18 +156,7 @@ fn the_fleet_side_steps_and_walks_back_from_a_twist() {
             [-0.1, 0.0],
         ),
     ] {
-        let out = out_dir(name);
-        let twist_arg = format!("--twist={twist}");
-        let run = walk(domain, &out, &["--steps", steps, &twist_arg]);
-        assert!(
-            run.status.success(),
-            "biped walk {name} failed:\n{}\n{}",
-            String::from_utf8_lossy(&run.stdout),
-            String::from_utf8_lossy(&run.stderr)
-        );
-        let r = report(&out);
-        eprintln!("{name}: {}", serde_json::to_string_pretty(&r).unwrap());
-        assert!(r["fell"].is_null(), "{name}: the robot fell: {}", r["fell"]);
+        let r = walk_twist(domain, name, &["--steps", steps], &twist);
         // The plan's feet moved exactly as commanded.
         assert!(
             (num(&r, "planned_distance_m") - want[0]).abs() < 1e-9,
@@ -207,22 +216,7 @@ fn walk_six_joint_robot(cases: [(u32, &str, &str, String, f64); 2]) {
     let robot = common::root().join("tests/data/biped6_renamed.urdf");
     let robot = robot.to_str().unwrap();
     for (domain, name, steps, twist, want_deg) in cases {
-        let out = out_dir(name);
-        let twist_arg = format!("--twist={twist}");
-        let run = walk(
-            domain,
-            &out,
-            &["--robot", robot, "--steps", steps, &twist_arg],
-        );
-        assert!(
-            run.status.success(),
-            "biped walk {name} failed:\n{}\n{}",
-            String::from_utf8_lossy(&run.stdout),
-            String::from_utf8_lossy(&run.stderr)
-        );
-        let r = report(&out);
-        eprintln!("{name}: {}", serde_json::to_string_pretty(&r).unwrap());
-        assert!(r["fell"].is_null(), "{name}: the robot fell: {}", r["fell"]);
+        let r = walk_twist(domain, name, &["--robot", robot, "--steps", steps], &twist);
         let heading = num(&r, "final_heading_deg");
         assert!(
             (heading - want_deg).abs() <= (0.1 * want_deg).max(3.0),

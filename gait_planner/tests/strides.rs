@@ -234,6 +234,56 @@ fn the_auto_limits_of_the_default_robot_pass_their_check_walks() {
     assert!((c.back_step_length_m - c.step_length_m).abs() < 1e-12);
 }
 
+/// Walks a sequence of strides given as fractions of the limits (forward or back, side,
+/// turn; scaled into the ellipsoid), at 20 Hz: the first from the start, each next one set
+/// when a swing begins (so it applies from the swing after), then a stop. Returns the
+/// resolved configuration and every tick up to idle again.
+fn walk_random(
+    model: &ik_solver::BipedModel,
+    strides: &[(f64, f64, f64)],
+) -> (gait_planner::GaitConfig, Vec<GaitSample>) {
+    let p = GaitParams {
+        control_rate_hz: 20.0,
+        ..GaitParams::default()
+    };
+    let mut planner = GaitPlanner::new(model.clone(), p).unwrap();
+    let c = planner.config().clone();
+    let stride_of = |(fx, ly, tz): (f64, f64, f64)| {
+        let k = (fx * fx + ly * ly + tz * tz).sqrt().max(1.0);
+        let x = if fx >= 0.0 {
+            c.step_length_m
+        } else {
+            c.back_step_length_m
+        };
+        Stride {
+            forward_m: fx / k * x,
+            left_m: ly / k * c.side_step_m,
+            turn_rad: tz / k * c.turn_step_rad,
+        }
+    };
+    planner.set_stride(stride_of(strides[0])).unwrap();
+    planner.request(WalkRequest::UntilStop);
+    let (mut next, mut last_step, mut out) = (1, 0, Vec::new());
+    for k in 0..100_000u32 {
+        let s = planner.update(f64::from(k) / 20.0).unwrap();
+        if s.step_index != last_step {
+            last_step = s.step_index;
+            if next < strides.len() {
+                planner.set_stride(stride_of(strides[next])).unwrap();
+                next += 1;
+            } else {
+                planner.request(WalkRequest::Stop);
+            }
+        }
+        let done = s.phase == PhaseKind::Idle && k > 2;
+        out.push(s);
+        if done {
+            return (c, out);
+        }
+    }
+    panic!("the walk never ended");
+}
+
 /// Soles as floor rectangles (no yaw): (x_min, x_max, y_min, y_max).
 fn sole_box(model: &ik_solver::BipedModel, side: Side, ankle: &Point3<f64>) -> [f64; 4] {
     let r = &model.leg(side).sole;
@@ -256,50 +306,19 @@ proptest! {
         strides in prop::collection::vec((-1.0f64..=1.0, -1.0f64..=1.0), 2..6),
     ) {
         let model = default_model();
-        let p = GaitParams { control_rate_hz: 20.0, ..GaitParams::default() };
-        let mut planner = GaitPlanner::new(model.clone(), p).unwrap();
-        let c = planner.config().clone();
-        let min_margin = c.min_com_margin_m;
-        let stride_of = |(fx, ly): (f64, f64)| {
-            // Inside the ellipse of the limits.
-            let k = fx.hypot(ly).max(1.0);
-            let x = if fx >= 0.0 { c.step_length_m } else { c.back_step_length_m };
-            Stride { forward_m: fx / k * x, left_m: ly / k * c.side_step_m, turn_rad: 0.0 }
-        };
-        planner.set_stride(stride_of(strides[0])).unwrap();
-        planner.request(WalkRequest::UntilStop);
-        let first = planner.update(0.0).unwrap();
+        let (c, samples) = walk_random(&model, &strides.iter().map(|&(f, l)| (f, l, 0.0)).collect::<Vec<_>>());
         let stand_gap = {
-            let [l, r] = first.ankles_world_m;
+            let [l, r] = samples[0].ankles_world_m;
             sole_box(&model, Side::Left, &l)[2] - sole_box(&model, Side::Right, &r)[3]
         };
-        let mut next = 1;
-        let mut last_step = 0;
-        let mut k = 1u32;
-        loop {
-            let s = planner.update(f64::from(k) / 20.0).unwrap();
-            k += 1;
+        for s in &samples {
             prop_assert!(s.issues.is_empty(), "t = {}: {:?}", s.t_s, s.issues);
-            prop_assert!(s.margin_m >= min_margin - 1e-12,
-                "t = {} ({}): margin {} below {}", s.t_s, s.phase, s.margin_m, min_margin);
+            prop_assert!(s.margin_m >= c.min_com_margin_m - 1e-12,
+                "t = {} ({}): margin {} below {}", s.t_s, s.phase, s.margin_m, c.min_com_margin_m);
             let [l, r] = s.ankles_world_m;
             let gap = sole_box(&model, Side::Left, &l)[2] - sole_box(&model, Side::Right, &r)[3];
             prop_assert!(gap >= stand_gap - 1e-12, "t = {}: inner edges {} m apart, {} standing",
                 s.t_s, gap, stand_gap);
-            if s.step_index != last_step {
-                // A swing began: the next stride (or the stop) applies from the swing after.
-                last_step = s.step_index;
-                if next < strides.len() {
-                    planner.set_stride(stride_of(strides[next])).unwrap();
-                    next += 1;
-                } else {
-                    planner.request(WalkRequest::Stop);
-                }
-            }
-            if s.phase == PhaseKind::Idle && k > 2 {
-                break;
-            }
-            prop_assert!(k < 100_000, "the walk never ended");
         }
     }
 }
@@ -394,36 +413,11 @@ proptest! {
         strides in prop::collection::vec((-1.0f64..=1.0, -1.0f64..=1.0, -1.0f64..=1.0), 2..5),
     ) {
         let model = biped6_model();
-        let p = GaitParams { control_rate_hz: 20.0, ..GaitParams::default() };
-        let mut planner = GaitPlanner::new(model.clone(), p).unwrap();
-        let c = planner.config().clone();
-        let stride_of = |(fx, ly, tz): (f64, f64, f64)| {
-            let k = (fx * fx + ly * ly + tz * tz).sqrt().max(1.0);
-            let x = if fx >= 0.0 { c.step_length_m } else { c.back_step_length_m };
-            Stride { forward_m: fx / k * x, left_m: ly / k * c.side_step_m, turn_rad: tz / k * c.turn_step_rad }
-        };
-        planner.set_stride(stride_of(strides[0])).unwrap();
-        planner.request(WalkRequest::UntilStop);
-        let (mut next, mut last_step, mut k) = (1, 0, 0u32);
-        loop {
-            let s = planner.update(f64::from(k) / 20.0).unwrap();
-            k += 1;
+        let (c, samples) = walk_random(&model, &strides);
+        for s in &samples {
             prop_assert!(s.issues.is_empty(), "t = {}: {:?}", s.t_s, s.issues);
             prop_assert!(s.margin_m >= c.min_com_margin_m - 1e-12, "t = {}: margin {}", s.t_s, s.margin_m);
-            prop_assert!(!corners_inside(&model, &s), "t = {} ({}): the soles overlap", s.t_s, s.phase);
-            if s.step_index != last_step {
-                last_step = s.step_index;
-                if next < strides.len() {
-                    planner.set_stride(stride_of(strides[next])).unwrap();
-                    next += 1;
-                } else {
-                    planner.request(WalkRequest::Stop);
-                }
-            }
-            if s.phase == PhaseKind::Idle && k > 2 {
-                break;
-            }
-            prop_assert!(k < 100_000, "the walk never ended");
+            prop_assert!(!corners_inside(&model, s), "t = {} ({}): the soles overlap", s.t_s, s.phase);
         }
     }
 }

@@ -88,28 +88,38 @@ struct Commands {
     follower: VelocityFollower,
 }
 
+/// The velocity of a Twist (the axes a walker uses), after checking that every one of its
+/// six numbers is finite: the error names the first that is not (`{prefix}linear.x = NaN`).
+fn velocity_of(tw: &Twist, prefix: &str) -> Result<Velocity, String> {
+    for (field, v) in [
+        ("linear.x", tw.linear.x),
+        ("linear.y", tw.linear.y),
+        ("linear.z", tw.linear.z),
+        ("angular.x", tw.angular.x),
+        ("angular.y", tw.angular.y),
+        ("angular.z", tw.angular.z),
+    ] {
+        if !v.is_finite() {
+            return Err(format!("{prefix}{field} = {v} is not a finite number"));
+        }
+    }
+    Ok(Velocity {
+        x_m_s: tw.linear.x,
+        y_m_s: tw.linear.y,
+        yaw_rad_s: tw.angular.z,
+    })
+}
+
 impl Commands {
     fn cmd_vel(&mut self, planner: &mut GaitPlanner, tw: &Twist, now_s: f64) -> Vec<String> {
-        let mut warnings = Vec::new();
-        for (field, v) in [
-            ("linear.z", tw.linear.z),
-            ("angular.x", tw.angular.x),
-            ("angular.y", tw.angular.y),
-        ] {
-            if !v.is_finite() {
-                warnings.push(format!(
-                    "cmd_vel refused: {field} = {v} is not a finite number"
-                ));
-                return warnings;
-            }
+        match velocity_of(tw, "") {
+            Ok(v) => self
+                .follower
+                .command(planner, v, now_s)
+                .into_iter()
+                .collect(),
+            Err(e) => vec![format!("cmd_vel refused: {e}")],
         }
-        let v = Velocity {
-            x_m_s: tw.linear.x,
-            y_m_s: tw.linear.y,
-            yaw_rad_s: tw.angular.z,
-        };
-        warnings.extend(self.follower.command(planner, v, now_s));
-        warnings
     }
 
     fn walk_command(
@@ -135,26 +145,12 @@ impl Commands {
                 return warnings;
             }
         }
-        let tw = &c.velocity;
-        for (field, v) in [
-            ("velocity.linear.x", tw.linear.x),
-            ("velocity.linear.y", tw.linear.y),
-            ("velocity.linear.z", tw.linear.z),
-            ("velocity.angular.x", tw.angular.x),
-            ("velocity.angular.y", tw.angular.y),
-            ("velocity.angular.z", tw.angular.z),
-        ] {
-            if !v.is_finite() {
-                warnings.push(format!(
-                    "walk_command refused: {field} = {v} is not a finite number"
-                ));
+        let velocity = match velocity_of(&c.velocity, "velocity.") {
+            Ok(v) => v,
+            Err(e) => {
+                warnings.push(format!("walk_command refused: {e}"));
                 return warnings;
             }
-        }
-        let velocity = Velocity {
-            x_m_s: tw.linear.x,
-            y_m_s: tw.linear.y,
-            yaw_rad_s: tw.angular.z,
         };
         let by_velocity = velocity != Velocity::default();
         if by_velocity && c.step_length > 0.0 {
