@@ -35,6 +35,18 @@ fn peer(scenario: &str, domain_id: u32) -> Value {
         .unwrap_or_else(|e| panic!("peer output is not JSON ({e}): {stderr}"))
 }
 
+/// The planner said on /rosout that the cmd_vel stream stopped and it ended the walk.
+fn assert_timed_out(v: &Value) {
+    assert!(
+        rosout_has(
+            v,
+            "gait_planner",
+            &["no command for 0.5 s", "ending the walk"]
+        ),
+        "no timeout message"
+    );
+}
+
 fn rosout_has(v: &Value, node: &str, needles: &[&str]) -> bool {
     v["rosout"].as_array().unwrap().iter().any(|m| {
         let msg = m["msg"].as_str().unwrap_or_default();
@@ -193,14 +205,7 @@ fn an_rclpy_teleop_side_steps_the_robot_and_the_walk_ends_when_it_stops() {
         v["finished"], true,
         "the walk did not end after the Twists stopped"
     );
-    assert!(
-        rosout_has(
-            &v,
-            "gait_planner",
-            &["no command for 0.5 s", "ending the walk"]
-        ),
-        "no timeout message"
-    );
+    assert_timed_out(&v);
     let phases = v["phases"].as_array().unwrap();
     let mut swings = std::collections::BTreeSet::new();
     for p in phases {
@@ -488,12 +493,5 @@ fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
         "turned {turned} rad, {along} m along the new heading; odometry {err} m and {yaw_err} deg off"
     );
     assert!(yaw_err < 5.0, "odometry heading {yaw_err} deg off");
-    assert!(
-        rosout_has(
-            &v,
-            "gait_planner",
-            &["no command for 0.5 s", "ending the walk"]
-        ),
-        "no timeout message"
-    );
+    assert_timed_out(&v);
 }

@@ -355,6 +355,18 @@ def scenario_launch(bin_dir, params):
     return out
 
 
+def stop_launcher(launcher, out):
+    """Ctrl-C to `biped launch`, as a user would; its exit code and stderr tail into out."""
+    launcher.send_signal(signal.SIGINT)
+    try:
+        _, stderr = launcher.communicate(timeout=20)
+    except subprocess.TimeoutExpired:
+        launcher.kill()
+        _, stderr = launcher.communicate()
+    out["launcher_returncode"] = launcher.returncode
+    out["launcher_stderr"] = stderr[-2000:]
+
+
 def scenario_sim(bin_dir, params):
     """`biped launch --backend sim`: the simulator in real time, watched and commanded by a
     plain rclpy node (no use_sim_time), as a user with RViz or Foxglove would."""
@@ -398,14 +410,7 @@ def scenario_sim(bin_dir, params):
     out["joint_state_names"] = last["name"]
     out["joint_state_stamps"] = [s["t"] for s in peer.states[-50:]]
     out["clock_values"] = [c["t"] for c in clock[-400:]]
-    launcher.send_signal(signal.SIGINT)
-    try:
-        stdout, stderr = launcher.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        launcher.kill()
-        stdout, stderr = launcher.communicate()
-    out["launcher_returncode"] = launcher.returncode
-    out["launcher_stderr"] = stderr[-2000:]
+    stop_launcher(launcher, out)
     out["rosout_errors"] = [m for m in peer.rosout if m["level"] >= 40]
     return out
 
@@ -460,14 +465,7 @@ def scenario_teleop_sim(bin_dir, params):
     out["finished"] = peer.spin(60.0, peer.idle_after_walking)
     peer.spin(1.0)
     out.update(phases=peer.phases, base=base, odom=odom, falls=falls, rosout=peer.rosout)
-    launcher.send_signal(signal.SIGINT)
-    try:
-        _, stderr = launcher.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        launcher.kill()
-        _, stderr = launcher.communicate()
-    out["launcher_returncode"] = launcher.returncode
-    out["launcher_stderr"] = stderr[-2000:]
+    stop_launcher(launcher, out)
     return out
 
 
