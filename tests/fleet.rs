@@ -428,11 +428,12 @@ fn an_rclpy_peer_watches_and_walks_the_simulated_robot_in_real_time() {
 }
 
 /// A teleop over /cmd_vel drives the six-joint robot (hip yaw) in the simulator at real
-/// time: it turns left (0.03 rad/s: 0.09 rad per 3 s step, the left foot turning 0.18 rad
-/// about the point between the feet, the right coming back parallel), the command changes
-/// to forward (10 mm/s: 30 mm per step) after two swings, then the Twists stop. The robot
-/// follows both commands in physics, the walk ends by itself, nothing falls, and /odom
-/// agrees with the simulator's ground truth.
+/// time, changing the command mid-walk: it turns left (0.03 rad/s: 0.09 rad per 3 s step,
+/// the left foot turning 0.18 rad about the point between the feet, the right coming back
+/// parallel) for two swings, walks forward (10 mm/s: 30 mm per step) for three, back
+/// (-8 mm/s) for three, in an arc (both) for three, then the Twists stop. The robot follows
+/// each command in physics, the walk ends by itself, nothing falls, and /odom agrees with
+/// the simulator's ground truth.
 #[test]
 fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
     let v = peer("teleop_sim", 65);
@@ -467,18 +468,57 @@ fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
             .unwrap_or_else(|| msgs[0].clone())
     };
     let (b0, b1) = (at(base, t0), at(base, t1 + 2_000_000_000));
+    let d = [xy(&b1)[0] - xy(&b0)[0], xy(&b1)[1] - xy(&b0)[1]];
     let turned = yaw(&b1) - yaw(&b0);
-    // Two turning swings: the left foot turned 0.18 rad, the pelvis followed.
+    // Each segment's effect, measured on the true base: from 3 s (a swing and a shift, the
+    // last swing of its stride landed and the pelvis settled) after the previous segment's
+    // end to 3 s after its own (the walk's end for the last).
+    let segments = v["segments"].as_array().unwrap();
+    let mut seg = std::collections::BTreeMap::new();
+    let mut from = t0;
+    for (k, sg) in segments.iter().enumerate() {
+        let to = if k + 1 == segments.len() {
+            t1 + 2_000_000_000
+        } else {
+            sg["to"].as_i64().unwrap() + 3_000_000_000
+        };
+        let (a, b) = (at(base, from), at(base, to));
+        let (s, c) = yaw(&a).sin_cos();
+        let dd = [xy(&b)[0] - xy(&a)[0], xy(&b)[1] - xy(&a)[1]];
+        let along = c * dd[0] + s * dd[1];
+        let name = sg["name"].as_str().unwrap().to_owned();
+        eprintln!(
+            "{name}: turned {} rad, {along} m along the heading",
+            yaw(&b) - yaw(&a)
+        );
+        seg.insert(name, (yaw(&b) - yaw(&a), along));
+        from = to;
+    }
+    // Turn: two swings, the left foot turned 0.18 rad, the pelvis followed.
+    let (turn, _) = seg["turn"];
     assert!(
-        (turned - 0.18).abs() <= 0.018,
-        "turned {turned} rad, commanded 0.18 (swings {})",
+        (turn - 0.18).abs() <= 0.018,
+        "turned {turn} rad, commanded 0.18 (swings {})",
         v["swings_turning"]
     );
-    // Then forward along the new heading.
-    let d = [xy(&b1)[0] - xy(&b0)[0], xy(&b1)[1] - xy(&b0)[1]];
-    let (s, c) = yaw(&b1).sin_cos();
-    let along = c * d[0] + s * d[1];
-    assert!(along > 0.06, "moved {along} m along the new heading, {d:?}");
+    // Ahead: three swings of 30 mm; back: three of 24 mm; the heading kept.
+    let (ahead_turn, ahead) = seg["ahead"];
+    assert!(
+        ahead > 0.06 && ahead_turn.abs() < 0.03,
+        "ahead: {ahead} m, {ahead_turn} rad"
+    );
+    let (back_turn, back) = seg["back"];
+    assert!(
+        back < -0.045 && back_turn.abs() < 0.03,
+        "back: {back} m, {back_turn} rad"
+    );
+    // Arc: forward while turning left (the left foot turns 0.18 rad at each of its two
+    // swings).
+    let (arc_turn, arc) = seg["arc"];
+    assert!(
+        arc > 0.03 && arc_turn > 0.25,
+        "arc: {arc} m, {arc_turn} rad"
+    );
     // Odometry against ground truth, as displacements over the walk.
     let (o0, o1) = (at(odom, t0), at(odom, t1 + 2_000_000_000));
     let od = [xy(&o1)[0] - xy(&o0)[0], xy(&o1)[1] - xy(&o0)[1]];
@@ -489,9 +529,7 @@ fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
         "odometry {err} m off after {moved} m"
     );
     let yaw_err = ((yaw(&o1) - yaw(&o0)) - turned).abs().to_degrees();
-    eprintln!(
-        "turned {turned} rad, {along} m along the new heading; odometry {err} m and {yaw_err} deg off"
-    );
+    eprintln!("odometry {err} m and {yaw_err} deg off after {moved} m and {turned} rad");
     assert!(yaw_err < 5.0, "odometry heading {yaw_err} deg off");
     assert_timed_out(&v);
 }

@@ -455,13 +455,25 @@ def scenario_teleop_sim(bin_dir, params):
             peer.cmd_vel_pub.publish(twist)
             peer.spin(0.1)
 
+    def last_stamp():
+        return peer.phases[-1]["stamp"] if peer.phases else 0
+
+    # Each segment: the Twist, streamed until this many swings have begun in all.
     turn = Twist()
     turn.angular.z = 0.03
-    stream(turn, lambda: len(swings()) >= 2, 60.0)
-    out["swings_turning"] = sorted(list(s) for s in swings())
     ahead = Twist()
     ahead.linear.x = 0.01
-    stream(ahead, lambda: len(swings()) >= 5, 60.0)
+    back = Twist()
+    back.linear.x = -0.008
+    arc = Twist()
+    arc.linear.x = 0.01
+    arc.angular.z = 0.03
+    out["segments"] = []
+    for name, twist, swings_after in [("turn", turn, 2), ("ahead", ahead, 5), ("back", back, 8), ("arc", arc, 11)]:
+        start = last_stamp()
+        stream(twist, lambda: len(swings()) >= swings_after, 60.0)
+        out["segments"].append({"name": name, "from": start, "to": last_stamp()})
+    out["swings_turning"] = sorted(list(s) for s in swings())
     out["finished"] = peer.spin(60.0, peer.idle_after_walking)
     peer.spin(1.0)
     out.update(phases=peer.phases, base=base, odom=odom, falls=falls, rosout=peer.rosout)
