@@ -68,6 +68,14 @@ impl VelocityFollower {
                 return Some(format!("cmd_vel refused: {e}{once}"));
             }
         };
+        if cmd.stride.is_zero() {
+            // Every axis asked for has a limit of 0 here (no back step, no side step): no
+            // walk in place for it.
+            return Some(format!(
+                "cmd_vel refused: linear.x = {}, linear.y = {} m/s: this robot's step limits allow no motion that way",
+                v.x_m_s, v.y_m_s
+            ));
+        }
         if let Err(e) = planner.set_stride(cmd.stride) {
             return Some(format!("cmd_vel refused: {e}"));
         }
