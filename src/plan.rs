@@ -157,5 +157,12 @@ pub fn apply_twist(
             v.x_m_s, v.y_m_s, v.yaw_rad_s, l.x_m_s, l.y_m_s, l.yaw_rad_s
         );
     }
-    planner.set_stride(cmd.stride).context("--twist")
+    let taken = planner.set_stride(cmd.stride).context("--twist")?;
+    if taken != cmd.stride {
+        eprintln!(
+            "biped: warning: --twist: the first step at that velocity fails its check; walking {:.4} m, {:.4} m, {:.4} rad per step",
+            taken.forward_m, taken.left_m, taken.turn_rad
+        );
+    }
+    Ok(())
 }

@@ -280,7 +280,13 @@ impl GaitPlanner {
 
     /// The stride of the next swings (see [`Stride`]); the walk is unchanged until then.
     /// Refused, naming the value, beyond the configured step limits or with a turn.
-    pub fn set_stride(&mut self, stride: Stride) -> Result<(), GaitError> {
+    ///
+    /// A new stride is first walked on a copy of the planner from where it is, through the
+    /// next swing (the first to take it) and the shift after it, with the checks of a check
+    /// walk: the limits are checked walking steadily, a change of stride is checked here.
+    /// If that step fails, the stride is halved (up to 3 times, then no motion: stepping in
+    /// place); the stride taken is returned.
+    pub fn set_stride(&mut self, stride: Stride) -> Result<Stride, GaitError> {
         let c = &self.cfg;
         // Within a part per billion: a velocity scaled onto a limit lands on it.
         let within = |v: f64, lo: f64, hi: f64| {
@@ -309,8 +315,57 @@ impl GaitPlanner {
                 )));
             }
         }
-        self.stride = stride;
-        Ok(())
+        if stride == self.stride {
+            return Ok(stride);
+        }
+        let mut s = stride;
+        for _ in 0..3 {
+            if self.check_next_step(s).is_ok() {
+                self.stride = s;
+                return Ok(s);
+            }
+            s = Stride {
+                forward_m: s.forward_m / 2.0,
+                left_m: s.left_m / 2.0,
+                turn_rad: s.turn_rad / 2.0,
+            };
+        }
+        self.stride = Stride::default();
+        Ok(self.stride)
+    }
+
+    /// Walks `stride` on a copy of this planner, from its last update through the next
+    /// swing and the shift after it (or to the end of the walk), and checks every tick.
+    fn check_next_step(&self, stride: Stride) -> Result<(), GaitError> {
+        let mut sim = self.clone();
+        sim.stride = stride;
+        if sim.is_idle() {
+            sim.request(WalkRequest::UntilStop);
+        }
+        let t0 = if self.last_t_s.is_finite() {
+            self.last_t_s
+        } else {
+            0.0
+        };
+        let first_new = self.phase.step_index + 1;
+        let dt = self.cfg.dt_s();
+        let mut samples = Vec::new();
+        // At most a crouch, a shift, a swing and a shift from here.
+        let limit = ((self.cfg.crouch_duration_s
+            + 2.0 * self.cfg.shift_duration_s
+            + 2.0 * self.cfg.step_duration_s)
+            / dt)
+            .ceil() as u64
+            + 2;
+        for k in 1..=limit {
+            let s = sim.update(t0 + k as f64 * dt)?;
+            let done = s.step_index > first_new || (s.phase == PhaseKind::Idle && k > 1);
+            samples.push(s);
+            if done {
+                break;
+            }
+        }
+        self.check_samples(&samples)
     }
 
     /// The stride the next swing takes.
@@ -959,6 +1014,12 @@ impl GaitPlanner {
         let mut check = Self::unchecked(self.model.clone(), self.cfg.clone());
         check.stride = stride;
         let samples = check.plan(WalkRequest::Steps(3))?;
+        self.check_samples(&samples)
+    }
+
+    /// The checks of a check walk on consecutive samples: no clamped joint, no overlapping
+    /// soles, the CoM margin, joint speeds.
+    fn check_samples(&self, samples: &[GaitSample]) -> Result<(), GaitError> {
         let dt = self.cfg.dt_s();
         let robot = self.model.robot();
         for (k, s) in samples.iter().enumerate() {

@@ -76,13 +76,25 @@ impl VelocityFollower {
                 v.x_m_s, v.y_m_s
             ));
         }
-        if let Err(e) = planner.set_stride(cmd.stride) {
-            return Some(format!("cmd_vel refused: {e}"));
-        }
+        let taken = match planner.set_stride(cmd.stride) {
+            Ok(taken) => taken,
+            Err(e) => return Some(format!("cmd_vel refused: {e}")),
+        };
         if self.deadline_s.is_none() {
             planner.request(WalkRequest::UntilStop);
         }
         self.deadline_s = Some(now_s + planner.config().cmd_vel_timeout_s);
+        if taken != cmd.stride {
+            return Some(format!(
+                "cmd_vel: from the present pose a step of {:.4} m, {:.4} m, {:.4} rad fails its check; taking {:.4} m, {:.4} m, {:.4} rad",
+                cmd.stride.forward_m,
+                cmd.stride.left_m,
+                cmd.stride.turn_rad,
+                taken.forward_m,
+                taken.left_m,
+                taken.turn_rad
+            ));
+        }
         match cmd.limited_to {
             Some(l) if self.reported_limit != Some(l) => {
                 self.reported_limit = Some(l);
