@@ -13,7 +13,7 @@
 
 use crate::GaitPlanner;
 use crate::phase::WalkRequest;
-use crate::stride::Velocity;
+use crate::stride::{Stride, Velocity};
 
 /// The state of a `cmd_vel` stream: when the walk it drives times out.
 #[derive(Debug, Clone, Default)]
@@ -25,6 +25,9 @@ pub struct VelocityFollower {
     reported_turn: bool,
     /// The last velocity reported as limited, so a steady stream warns once.
     reported_limit: Option<Velocity>,
+    /// The last stride reported as lowered by its check from the present pose, and the
+    /// stride taken instead, so a steady stream warns once per change.
+    reported_lowered: Option<(Stride, Stride)>,
 }
 
 impl VelocityFollower {
@@ -85,6 +88,10 @@ impl VelocityFollower {
         }
         self.deadline_s = Some(now_s + planner.config().cmd_vel_timeout_s);
         if taken != cmd.stride {
+            if self.reported_lowered == Some((cmd.stride, taken)) {
+                return None;
+            }
+            self.reported_lowered = Some((cmd.stride, taken));
             return Some(format!(
                 "cmd_vel: from the present pose a step of {:.4} m, {:.4} m, {:.4} rad fails its check; taking {:.4} m, {:.4} m, {:.4} rad",
                 cmd.stride.forward_m,
