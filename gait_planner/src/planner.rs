@@ -3,7 +3,8 @@
 //! polygon, and turns both ankle positions into joint angles with the closed-form IK.
 //!
 //! World frame: on the floor at the midpoint between the feet of the initial pose, x forward,
-//! y left, z up. The pelvis is kept level and facing +x.
+//! y left, z up. The pelvis is kept level, facing between the feet; the feet land where
+//! the stride of each step puts them ([`Stride`]: forward or back, sideways, turning).
 
 use ik_solver::support::{Xy, convex_hull, convex_overlap, signed_margin};
 use ik_solver::{AnkleTarget, BipedModel, IkIssue, Side, StaticPose};
@@ -168,10 +169,11 @@ impl GaitPlanner {
     /// within reach and joint limits, at every tick of a check walk that has every kind of
     /// phase. Refuses otherwise, naming the phase and the shortfall.
     ///
-    /// The walk is checked at the forward step, at the longest backward step, and at the
+    /// The walk is checked at the forward step, at the longest backward step, at the
     /// longest side step to either side alone and together with the longest forward or
-    /// backward step (at 1/√2 of each). A step limit left at 0 (auto) whose check fails is
-    /// lowered until it passes; one set by hand is refused.
+    /// backward step, and (with hip yaw) at the largest turn either way, in place, in an arc
+    /// and with a side step (combinations at 1/√2 of each). A step limit left at 0 (auto)
+    /// whose check fails is lowered until it passes; one set by hand is refused.
     pub fn new(model: BipedModel, params: GaitParams) -> Result<Self, GaitError> {
         let cfg = params.resolve(&model)?;
         let mut planner = Self::unchecked(model, cfg);
@@ -279,7 +281,7 @@ impl GaitPlanner {
     }
 
     /// The stride of the next swings (see [`Stride`]); the walk is unchanged until then.
-    /// Refused, naming the value, beyond the configured step limits or with a turn.
+    /// Refused, naming the value, when not finite or beyond the configured step limits.
     ///
     /// A new stride is first walked on a copy of the planner from where it is, through the
     /// next swing (the first to take it) and the shift after it, with the checks of a check

@@ -174,6 +174,39 @@ ros_message!(
     ]
 );
 
+impl From<&nalgebra::Isometry3<f64>> for Pose {
+    /// The wire form of a pose (the quaternion as x, y, z, w).
+    fn from(p: &nalgebra::Isometry3<f64>) -> Self {
+        let (t, q) = (&p.translation.vector, p.rotation.quaternion());
+        Self {
+            position: Point {
+                x: t.x,
+                y: t.y,
+                z: t.z,
+            },
+            orientation: Quaternion {
+                x: q.i,
+                y: q.j,
+                z: q.k,
+                w: q.w,
+            },
+        }
+    }
+}
+
+impl From<&Pose> for nalgebra::Isometry3<f64> {
+    /// A pose off the wire; the quaternion is normalised.
+    fn from(p: &Pose) -> Self {
+        let (t, q) = (&p.position, &p.orientation);
+        nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(t.x, t.y, t.z),
+            nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+                q.w, q.x, q.y, q.z,
+            )),
+        )
+    }
+}
+
 /// geometry_msgs/msg/PoseStamped.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct PoseStamped {
@@ -566,3 +599,29 @@ ros_message!(
         ("status", "sequence<diagnostic_msgs/DiagnosticStatus>"),
     ]
 );
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_pose_goes_to_the_wire_and_back() {
+        // 1, 2, 3 m, turned 90 deg about z: the quaternion (0, 0, sin 45, cos 45).
+        let p = nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(1.0, 2.0, 3.0),
+            nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_2),
+        );
+        let wire = Pose::from(&p);
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        assert_eq!(
+            (wire.position.x, wire.position.y, wire.position.z),
+            (1.0, 2.0, 3.0)
+        );
+        let q = &wire.orientation;
+        assert!(q.x.abs() < 1e-15 && q.y.abs() < 1e-15);
+        assert!((q.z - h).abs() < 1e-15 && (q.w - h).abs() < 1e-15);
+        let back = nalgebra::Isometry3::from(&wire);
+        assert!((back.translation.vector - p.translation.vector).norm() < 1e-15);
+        assert!(back.rotation.angle_to(&p.rotation) < 1e-12);
+    }
+}

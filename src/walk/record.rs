@@ -7,7 +7,7 @@ use biped_msgs::msg::{
     GaitPhase, JointState, PointStamped, PolygonStamped, PoseStamped, StringMsg,
 };
 use gait_planner::PhaseKind;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::Isometry3;
 use ros2_client::Subscription;
 
 /// The planner's phase at a tick.
@@ -100,15 +100,8 @@ impl Recording {
             self.states.insert(m.header.stamp.to_nanos(), m);
         });
         drain(base, "sim/base_pose", u, |m| {
-            let p = &m.pose.position;
-            let q = &m.pose.orientation;
-            self.base.insert(
-                m.header.stamp.to_nanos(),
-                Isometry3::from_parts(
-                    Translation3::new(p.x, p.y, p.z),
-                    UnitQuaternion::from_quaternion(Quaternion::new(q.w, q.x, q.y, q.z)),
-                ),
-            );
+            self.base
+                .insert(m.header.stamp.to_nanos(), Isometry3::from(&m.pose));
         });
         drain(cop, "sim/cop", u, |m| {
             self.cop

@@ -215,13 +215,7 @@ pub fn summarize(
     let (odometry_error_m, odometry_yaw_error_deg) = match &odometry {
         Some(odo) => {
             let e = odo.base().translation.vector - base_end.translation.vector;
-            let yaw = |p: &Isometry3<f64>| {
-                let x = p.rotation * nalgebra::Vector3::x();
-                x.y.atan2(x.x)
-            };
-            let dyaw = (yaw(odo.base()) - yaw(&base_end) + std::f64::consts::PI)
-                .rem_euclid(std::f64::consts::TAU)
-                - std::f64::consts::PI;
+            let dyaw = walk_eval::heading_change_rad(&base_end, odo.base());
             (e.xy().norm(), dyaw.abs().to_degrees())
         }
         None => (f64::NAN, f64::NAN),

@@ -302,15 +302,8 @@ def scenario_launch(bin_dir, params):
     launcher = subprocess.Popen([biped, "launch", "--log-dir", log_dir], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     peer = Peer()
     out = {"nodes_seen": peer.wait_for_nodes(30.0), "node_names": peer.node_names()}
-    launcher.send_signal(signal.SIGINT)
-    try:
-        stdout, stderr = launcher.communicate(timeout=20)
-    except subprocess.TimeoutExpired:
-        launcher.kill()
-        stdout, stderr = launcher.communicate()
-    out["launcher_returncode"] = launcher.returncode
+    stdout = stop_launcher(launcher, out)
     out["launcher_stdout"] = stdout
-    out["launcher_stderr"] = stderr[-2000:]
     pids = [int(line.split("(pid ")[1].split(")")[0]) for line in stdout.splitlines() if "(pid " in line]
     out["pids"] = pids
     alive = []
@@ -356,15 +349,17 @@ def scenario_launch(bin_dir, params):
 
 
 def stop_launcher(launcher, out):
-    """Ctrl-C to `biped launch`, as a user would; its exit code and stderr tail into out."""
+    """Ctrl-C to `biped launch`, as a user would; its exit code and stderr tail into out.
+    Returns what it printed on stdout."""
     launcher.send_signal(signal.SIGINT)
     try:
-        _, stderr = launcher.communicate(timeout=20)
+        stdout, stderr = launcher.communicate(timeout=20)
     except subprocess.TimeoutExpired:
         launcher.kill()
-        _, stderr = launcher.communicate()
+        stdout, stderr = launcher.communicate()
     out["launcher_returncode"] = launcher.returncode
     out["launcher_stderr"] = stderr[-2000:]
+    return stdout
 
 
 def scenario_sim(bin_dir, params):

@@ -17,5 +17,5 @@ mod walk;
 
 pub use walk::{
     FallReport, Interpolation, Observation, PhaseMargin, PlayOptions, Playback, STANCE_FRACTION,
-    WalkMonitor, WalkReport, run_plan,
+    WalkMonitor, WalkReport, along_heading, heading_change_rad, heading_rad, run_plan,
 };

@@ -187,18 +187,27 @@ pub struct WalkReport {
     pub min_cop_margin_per_phase: Vec<PhaseMargin>,
 }
 
-fn yaw(pose: &Isometry3<f64>) -> f64 {
+/// Heading of a pose on the floor: the angle of its x axis from the world's x, counter-
+/// clockwise (rad).
+pub fn heading_rad(pose: &Isometry3<f64>) -> f64 {
     let x = pose.rotation * Vector3::x();
     x.y.atan2(x.x)
 }
 
-fn wrap_pi(a: f64) -> f64 {
-    let r = a.rem_euclid(std::f64::consts::TAU);
+/// How far `to` is turned from `from` on the floor, counter-clockwise, in (-π, π] (rad).
+pub fn heading_change_rad(from: &Isometry3<f64>, to: &Isometry3<f64>) -> f64 {
+    let r = (heading_rad(to) - heading_rad(from)).rem_euclid(std::f64::consts::TAU);
     if r > std::f64::consts::PI {
         r - std::f64::consts::TAU
     } else {
         r
     }
+}
+
+/// A floor displacement `[dx, dy]` in the frame of a heading: `[forward, left]`.
+fn in_heading(heading_rad: f64, d: [f64; 2]) -> [f64; 2] {
+    let (s, c) = heading_rad.sin_cos();
+    [c * d[0] + s * d[1], -s * d[0] + c * d[1]]
 }
 
 /// One measurement of the robot, from the simulator itself ([`Observation::of_sim`]) or
@@ -291,7 +300,7 @@ impl WalkMonitor {
         ];
         let first = self.feet_mid.map_or(mid, |(f, _)| f);
         self.feet_mid = Some((first, mid));
-        let heading = wrap_pi(yaw(&o.base) - yaw(&self.start_base)).abs();
+        let heading = heading_change_rad(&self.start_base, &o.base).abs();
         self.max_heading_rad = self.max_heading_rad.max(heading);
         if let Some(margin) = o.cop_margin_m {
             self.cop_samples += 1;
@@ -359,12 +368,9 @@ impl WalkMonitor {
             planned_distance_m: planned_m[0],
             left_m,
             planned_left_m: planned_m[1],
-            final_heading_deg: wrap_pi(yaw(base) - yaw(&self.start_base)).to_degrees(),
+            final_heading_deg: heading_change_rad(&self.start_base, base).to_degrees(),
             feet_moved_m: self.feet_mid.map_or([0.0, 0.0], |(a, b)| {
-                let h = yaw(&self.start_base);
-                let (s, c) = h.sin_cos();
-                let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-                [c * dx + s * dy, -s * dx + c * dy]
+                in_heading(heading_rad(&self.start_base), [b[0] - a[0], b[1] - a[1]])
             }),
             max_foot_slip_m: self.max_slip_m,
             cop_inside_fraction: if self.cop_samples > 0 {
@@ -438,8 +444,6 @@ pub fn run_plan(
 
 /// How far `to` is from `start`, `[forward, left]` of the start's heading on the floor (m).
 pub fn along_heading(start: &Isometry3<f64>, to: &Vector3<f64>) -> [f64; 2] {
-    let h = yaw(start);
     let moved = to - start.translation.vector;
-    let (s, c) = h.sin_cos();
-    [c * moved.x + s * moved.y, -s * moved.x + c * moved.y]
+    in_heading(heading_rad(start), [moved.x, moved.y])
 }

@@ -31,7 +31,7 @@ use std::sync::{Arc, Mutex};
 use anyhow::Context as _;
 use biped_msgs::msg::{
     AnkleTargets, Covariance6, GaitPhase, Header, JointState, Odometry, Point, Pose,
-    PoseWithCovariance, Quaternion, Twist, TwistWithCovariance, Vector3, WalkCommand,
+    PoseWithCovariance, Twist, TwistWithCovariance, Vector3, WalkCommand,
 };
 use gait_planner::{
     GaitParams, GaitPlanner, GaitSample, PhaseKind, Stride, Velocity, VelocityFollower, WalkRequest,
@@ -300,8 +300,6 @@ impl OdomPublisher {
         let v =
             base.rotation.inverse() * (base.translation.vector - prev.translation.vector) / dt_s;
         let w = (prev.rotation.inverse() * base.rotation).scaled_axis() / dt_s;
-        let t = &base.translation.vector;
-        let r = base.rotation.as_ref().coords;
         let mut twist_cov = [0.0; 36];
         for i in 0..6 {
             let sigma = if i < 3 {
@@ -318,19 +316,7 @@ impl OdomPublisher {
             },
             child_frame_id: base_frame.to_owned(),
             pose: PoseWithCovariance {
-                pose: Pose {
-                    position: Point {
-                        x: t.x,
-                        y: t.y,
-                        z: t.z,
-                    },
-                    orientation: Quaternion {
-                        x: r.x,
-                        y: r.y,
-                        z: r.z,
-                        w: r.w,
-                    },
-                },
+                pose: Pose::from(&base),
                 covariance: Covariance6(odo.covariance()),
             },
             twist: TwistWithCovariance {

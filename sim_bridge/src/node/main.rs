@@ -38,7 +38,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use biped_msgs::msg::{
     Clock, Header, JointState, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose,
-    PoseStamped, Quaternion, StringMsg, Time,
+    PoseStamped, StringMsg, Time,
 };
 use node_runtime::{NodeSetup, RosNode};
 use ros2_client::{ParameterValue, Publisher};
@@ -113,7 +113,6 @@ impl Outputs {
             frame_id: frame.to_owned(),
         };
         let base = sim.base_pose();
-        let (b, q) = (base.translation.vector, base.rotation.quaternion());
         let contacts = sim.contacts();
         let mut failed = Vec::new();
         let mut check = |what: &str, r: Result<(), String>| {
@@ -138,19 +137,7 @@ impl Outputs {
             self.base_pose
                 .publish(PoseStamped {
                     header: header(&self.world_frame),
-                    pose: Pose {
-                        position: Point {
-                            x: b.x,
-                            y: b.y,
-                            z: b.z,
-                        },
-                        orientation: Quaternion {
-                            x: q.i,
-                            y: q.j,
-                            z: q.k,
-                            w: q.w,
-                        },
-                    },
+                    pose: Pose::from(&base),
                 })
                 .map_err(|e| e.to_string()),
         );
