@@ -33,10 +33,11 @@ use std::process::{Command, Stdio};
 
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{
-    AnkleTargets, Clock, DiagnosticArray, DiagnosticStatus, GaitPhase, Header, JointState,
-    KeyValue, Odometry, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose, PoseStamped,
-    PoseWithCovariance, Quaternion, StringMsg, Time, Twist, TwistWithCovariance, Vector3,
-    WalkCommand,
+    AnkleTargets, Clock, ColorRGBA, CompressedImage, DiagnosticArray, DiagnosticStatus, Duration,
+    GaitPhase, Header, JointState, KeyValue, Marker, MarkerArray, MeshFile, Odometry, Point,
+    Point32, PointStamped, Polygon, PolygonStamped, Pose, PoseStamped, PoseWithCovariance,
+    Quaternion, StringMsg, TFMessage, Time, Transform, TransformStamped, Twist,
+    TwistWithCovariance, UVCoordinate, Vector3, WalkCommand,
 };
 use ros2_client::dds::rustdds;
 use rustdds::no_key::{DeserializerAdapter, SerializerAdapter};
@@ -177,6 +178,16 @@ fn registry() -> Vec<Entry> {
         KeyValue,
         DiagnosticStatus,
         DiagnosticArray,
+        Duration,
+        Transform,
+        TransformStamped,
+        TFMessage,
+        ColorRGBA,
+        CompressedImage,
+        UVCoordinate,
+        MeshFile,
+        Marker,
+        MarkerArray,
     )
 }
 

@@ -51,3 +51,40 @@ fn every_known_type_hashes_as_rosidl_hashed_it() {
         );
     }
 }
+
+/// The same hashes from an independent implementation: rosbags' own RIHS01 over its Jazzy
+/// type store (which carries tf2_msgs, whose rosidl JSON above is built from our copy of
+/// TFMessage.msg, tests/ros_interfaces/tf2_msgs), with biped_msgs registered from
+/// msgs/msg/*.msg.
+#[test]
+fn every_known_type_hashes_as_rosbags_hashes_it() {
+    let share = venv_share();
+    let python = share.parent().unwrap().join("bin/biped-python");
+    let names: Vec<&str> = known_types().iter().map(|k| k.type_name).collect();
+    let script = "import pathlib, sys\n\
+        from rosbags.typesys import Stores, get_typestore, get_types_from_msg\n\
+        ts = get_typestore(Stores.ROS2_JAZZY)\n\
+        for f in sorted(pathlib.Path(sys.argv[1]).glob('*.msg')):\n    \
+            ts.register(get_types_from_msg(f.read_text(), f'biped_msgs/msg/{f.stem}'))\n\
+        for name in sys.argv[2:]:\n    print(name, ts.hash_rihs01(name))\n";
+    let out = std::process::Command::new(&python)
+        .arg("-c")
+        .arg(script)
+        .arg(Path::new(WORKSPACE).join("msgs/msg"))
+        .args(&names)
+        .output()
+        .unwrap_or_else(|e| panic!("{}: {e}", python.display()));
+    assert!(
+        out.status.success(),
+        "rosbags: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut checked = 0;
+    for line in text.lines() {
+        let (name, theirs) = line.split_once(' ').unwrap();
+        assert_eq!(rihs01(name).unwrap(), theirs, "{name}");
+        checked += 1;
+    }
+    assert_eq!(checked, names.len(), "{text}");
+}

@@ -600,6 +600,273 @@ ros_message!(
     ]
 );
 
+/// builtin_interfaces/msg/Duration.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct Duration {
+    /// Seconds.
+    pub sec: i32,
+    /// Nanoseconds within the second.
+    pub nanosec: u32,
+}
+ros_message!(
+    Duration,
+    "builtin_interfaces",
+    [("sec", "int32"), ("nanosec", "uint32")]
+);
+
+/// geometry_msgs/msg/Transform: where a child frame is in its parent frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Transform {
+    /// The child frame's origin in the parent frame (m).
+    pub translation: Vector3,
+    /// The child frame's orientation in the parent frame.
+    pub rotation: Quaternion,
+}
+ros_message!(
+    Transform,
+    "geometry_msgs",
+    [
+        ("translation", "geometry_msgs/Vector3"),
+        ("rotation", "geometry_msgs/Quaternion")
+    ]
+);
+
+impl From<&nalgebra::Isometry3<f64>> for Transform {
+    /// The wire form of a frame's pose in its parent (the quaternion as x, y, z, w).
+    fn from(p: &nalgebra::Isometry3<f64>) -> Self {
+        let pose = Pose::from(p);
+        Self {
+            translation: Vector3 {
+                x: pose.position.x,
+                y: pose.position.y,
+                z: pose.position.z,
+            },
+            rotation: pose.orientation,
+        }
+    }
+}
+
+/// geometry_msgs/msg/TransformStamped: one edge of the TF tree.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TransformStamped {
+    /// Stamp and the parent frame.
+    pub header: Header,
+    /// The child frame.
+    pub child_frame_id: String,
+    /// The child frame in the parent frame.
+    pub transform: Transform,
+}
+ros_message!(
+    TransformStamped,
+    "geometry_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("child_frame_id", "string"),
+        ("transform", "geometry_msgs/Transform")
+    ]
+);
+
+/// tf2_msgs/msg/TFMessage (topics `/tf` and `/tf_static`).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TFMessage {
+    /// The transforms.
+    pub transforms: Vec<TransformStamped>,
+}
+ros_message!(
+    TFMessage,
+    "tf2_msgs",
+    [("transforms", "sequence<geometry_msgs/TransformStamped>")]
+);
+
+/// std_msgs/msg/ColorRGBA: each channel 0..1.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct ColorRGBA {
+    /// Red.
+    pub r: f32,
+    /// Green.
+    pub g: f32,
+    /// Blue.
+    pub b: f32,
+    /// Opacity (0 invisible).
+    pub a: f32,
+}
+ros_message!(
+    ColorRGBA,
+    "std_msgs",
+    [
+        ("r", "float"),
+        ("g", "float"),
+        ("b", "float"),
+        ("a", "float")
+    ]
+);
+
+/// sensor_msgs/msg/CompressedImage (here only as a Marker's texture).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct CompressedImage {
+    /// Acquisition time and frame.
+    pub header: Header,
+    /// `jpeg`, `png`, ...
+    pub format: String,
+    /// The compressed image.
+    pub data: Vec<u8>,
+}
+ros_message!(
+    CompressedImage,
+    "sensor_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("format", "string"),
+        ("data", "sequence<uint8>")
+    ]
+);
+
+/// visualization_msgs/msg/UVCoordinate: a texture coordinate of a Marker vertex.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct UVCoordinate {
+    /// u.
+    pub u: f32,
+    /// v.
+    pub v: f32,
+}
+ros_message!(
+    UVCoordinate,
+    "visualization_msgs",
+    [("u", "float"), ("v", "float")]
+);
+
+/// visualization_msgs/msg/MeshFile: a mesh sent inside a Marker.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeshFile {
+    /// The file name (its extension says the format).
+    pub filename: String,
+    /// The file's bytes.
+    pub data: Vec<u8>,
+}
+ros_message!(
+    MeshFile,
+    "visualization_msgs",
+    [("filename", "string"), ("data", "sequence<uint8>")]
+);
+
+/// visualization_msgs/msg/Marker: one shape for RViz or Foxglove.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Marker {
+    /// Stamp and the frame the shape is drawn in.
+    pub header: Header,
+    /// Namespace: with `id`, what names the marker.
+    pub ns: String,
+    /// Id within the namespace.
+    pub id: i32,
+    /// [`Marker::ARROW`] ... [`Marker::ARROW_STRIP`].
+    pub r#type: i32,
+    /// [`Marker::ADD`], [`Marker::DELETE`] or [`Marker::DELETEALL`].
+    pub action: i32,
+    /// Pose of the shape in the frame.
+    pub pose: Pose,
+    /// Size (m; for lines, x is the width).
+    pub scale: Vector3,
+    /// Colour of the whole shape.
+    pub color: ColorRGBA,
+    /// How long the shape stays (0: until replaced).
+    pub lifetime: Duration,
+    /// Redrawn in its frame as the frame moves.
+    pub frame_locked: bool,
+    /// Vertices of lines, lists and points (in the pose's frame).
+    pub points: Vec<Point>,
+    /// A colour per point (empty: `color`).
+    pub colors: Vec<ColorRGBA>,
+    /// Texture URI.
+    pub texture_resource: String,
+    /// Texture sent inline.
+    pub texture: CompressedImage,
+    /// Texture coordinates per point.
+    pub uv_coordinates: Vec<UVCoordinate>,
+    /// Text of a TEXT_VIEW_FACING marker.
+    pub text: String,
+    /// Mesh URI.
+    pub mesh_resource: String,
+    /// Mesh sent inline.
+    pub mesh_file: MeshFile,
+    /// Use the mesh's own materials.
+    pub mesh_use_embedded_materials: bool,
+}
+ros_message!(
+    Marker,
+    "visualization_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("ns", "string"),
+        ("id", "int32"),
+        ("type", "int32"),
+        ("action", "int32"),
+        ("pose", "geometry_msgs/Pose"),
+        ("scale", "geometry_msgs/Vector3"),
+        ("color", "std_msgs/ColorRGBA"),
+        ("lifetime", "builtin_interfaces/Duration"),
+        ("frame_locked", "boolean"),
+        ("points", "sequence<geometry_msgs/Point>"),
+        ("colors", "sequence<std_msgs/ColorRGBA>"),
+        ("texture_resource", "string"),
+        ("texture", "sensor_msgs/CompressedImage"),
+        (
+            "uv_coordinates",
+            "sequence<visualization_msgs/UVCoordinate>"
+        ),
+        ("text", "string"),
+        ("mesh_resource", "string"),
+        ("mesh_file", "visualization_msgs/MeshFile"),
+        ("mesh_use_embedded_materials", "boolean"),
+    ]
+);
+
+impl Marker {
+    /// `type`: an arrow.
+    pub const ARROW: i32 = 0;
+    /// `type`: a box.
+    pub const CUBE: i32 = 1;
+    /// `type`: a sphere.
+    pub const SPHERE: i32 = 2;
+    /// `type`: a cylinder.
+    pub const CYLINDER: i32 = 3;
+    /// `type`: a polyline through `points`.
+    pub const LINE_STRIP: i32 = 4;
+    /// `type`: a segment per pair of `points`.
+    pub const LINE_LIST: i32 = 5;
+    /// `type`: a box per point.
+    pub const CUBE_LIST: i32 = 6;
+    /// `type`: a sphere per point.
+    pub const SPHERE_LIST: i32 = 7;
+    /// `type`: a square per point.
+    pub const POINTS: i32 = 8;
+    /// `type`: text facing the viewer.
+    pub const TEXT_VIEW_FACING: i32 = 9;
+    /// `type`: a mesh.
+    pub const MESH_RESOURCE: i32 = 10;
+    /// `type`: a triangle per three `points`.
+    pub const TRIANGLE_LIST: i32 = 11;
+    /// `type`: arrows along `points`.
+    pub const ARROW_STRIP: i32 = 12;
+    /// `action`: add or replace.
+    pub const ADD: i32 = 0;
+    /// `action`: remove this marker.
+    pub const DELETE: i32 = 2;
+    /// `action`: remove every marker (of the namespace, if given).
+    pub const DELETEALL: i32 = 3;
+}
+
+/// visualization_msgs/msg/MarkerArray.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct MarkerArray {
+    /// The markers.
+    pub markers: Vec<Marker>,
+}
+ros_message!(
+    MarkerArray,
+    "visualization_msgs",
+    [("markers", "sequence<visualization_msgs/Marker>")]
+);
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -119,6 +119,16 @@ pub fn known_types() -> &'static [KnownType] {
             KeyValue,
             DiagnosticStatus,
             DiagnosticArray,
+            Duration,
+            Transform,
+            TransformStamped,
+            TFMessage,
+            ColorRGBA,
+            CompressedImage,
+            UVCoordinate,
+            MeshFile,
+            Marker,
+            MarkerArray,
         ]
         .to_vec();
         v.push(KnownType {
