@@ -1,7 +1,7 @@
 //! `biped launch`: the fleet as separate processes, supervised.
 //!
-//! Starts `gait_planner`, `ik_solver` and `joint_bridge` (the node binaries beside this
-//! one), and with `--backend sim` also `sim_bridge` (MuJoCo), each with `--ros-args` for the
+//! Starts `gait_planner`, `ik_solver`, `joint_bridge` and `robot_state_publisher` (the
+//! node binaries beside this one), and with `--backend sim` also `sim_bridge` (MuJoCo), each with `--ros-args` for the
 //! namespace, the parameter files and the robot, and its output in a log file. Runs until
 //! Ctrl-C or SIGTERM, or until a node exits on its own; then asks every node to stop
 //! (SIGINT, as `ros2 launch` does), waits, and kills what is left. Nodes also stop by
@@ -87,7 +87,12 @@ impl LaunchOptions {
     /// The nodes of this launch, in start order: the simulator last, so that a walk command
     /// sent before it starts is taken on simulated time.
     pub fn nodes(&self) -> Vec<&'static str> {
-        let mut n = vec!["joint_bridge", "ik_solver", "gait_planner"];
+        let mut n = vec![
+            "joint_bridge",
+            "ik_solver",
+            "gait_planner",
+            "robot_state_publisher",
+        ];
         if self.backend == "sim" {
             n.push("sim_bridge");
         }

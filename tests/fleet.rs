@@ -324,10 +324,40 @@ fn biped_launch_starts_the_fleet_and_leaves_no_process_behind() {
     assert_eq!(v["launcher_returncode"], 0, "{}", v["launcher_stderr"]);
     assert_eq!(
         v["pids"].as_array().unwrap().len(),
-        3,
+        4,
         "{}",
         v["launcher_stdout"]
     );
+    // A subscriber that joined after the fleet published (transient local, as RViz's
+    // RobotModel display) gets the URDF in use, and the fixed joints' frames.
+    let descriptions = v["robot_description"].as_array().unwrap();
+    assert_eq!(
+        descriptions.len(),
+        1,
+        "one robot_description: {descriptions:?}"
+    );
+    assert_eq!(descriptions[0].as_str().unwrap(), ik_solver::DEFAULT_URDF);
+    let robot = ik_solver::RobotModel::from_urdf_str(ik_solver::DEFAULT_URDF).unwrap();
+    let fixed: Vec<(&str, &str)> = robot
+        .joints()
+        .iter()
+        .filter(|j| j.dof.is_none())
+        .map(|j| {
+            (
+                robot.links()[j.parent].name.as_str(),
+                robot.links()[j.child].name.as_str(),
+            )
+        })
+        .collect();
+    let statics = v["tf_static"].as_array().unwrap();
+    assert_eq!(statics.len(), 1, "one /tf_static message: {statics:?}");
+    let edges: Vec<(&str, &str)> = statics[0]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| (t["parent"].as_str().unwrap(), t["child"].as_str().unwrap()))
+        .collect();
+    assert_eq!(edges, fixed);
     assert_eq!(
         v["alive_after"].as_array().unwrap().len(),
         0,
@@ -338,7 +368,7 @@ fn biped_launch_starts_the_fleet_and_leaves_no_process_behind() {
         v["launcher_stdout"].as_str().unwrap().contains("log: "),
         "says where each node logs"
     );
-    assert_eq!(v["pids_after_kill"].as_array().unwrap().len(), 3);
+    assert_eq!(v["pids_after_kill"].as_array().unwrap().len(), 4);
     assert_eq!(
         v["alive_after_kill"].as_array().unwrap().len(),
         0,

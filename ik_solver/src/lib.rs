@@ -11,11 +11,14 @@
 //! margin) and the simulator (the measured centre of pressure's) both use: the bottom layer
 //! of the workspace, depending on no other crate of it.
 //!
+//! [`frames`] turns joint states into the link frames a robot state publisher sends to TF.
+//!
 //! Pure library: no I/O beyond reading a URDF file when asked, no clock, no middleware. The
 //! `ik_solver` ROS 2 node wraps it (the `node` feature). Frames follow REP-103 (x forward,
 //! y left, z up), lengths in metres, angles in radians.
 
 mod error;
+pub mod frames;
 mod ik;
 mod legs;
 mod model;
@@ -24,6 +27,7 @@ mod statics;
 pub mod support;
 
 pub use error::{IkError, ModelError};
+pub use frames::{FrameTransform, FrameTree, JointStateError, SkippedJoints};
 pub use ik::{AnkleTarget, BipedModel, IkIssue, LegSolution};
 pub use legs::{Axis, JointRole, Leg, LegJoint, LegJointNames, LegRoleMap, Side, SoleRect};
 pub use model::{CollisionBox, Inertial, Joint, JointKind, JointLimits, Link, RobotModel};

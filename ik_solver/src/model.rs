@@ -484,20 +484,29 @@ impl RobotModel {
         poses[self.root] = *base;
         for &ji in &self.order {
             let j = &self.joints[ji];
-            let motion = match (j.kind, j.dof) {
-                (JointKind::Revolute | JointKind::Continuous, Some(d)) => Isometry3::from_parts(
-                    Translation3::identity(),
-                    UnitQuaternion::from_axis_angle(&j.axis, q[d]),
-                ),
-                (JointKind::Prismatic, Some(d)) => Isometry3::from_parts(
-                    Translation3::from(j.axis.into_inner() * q[d]),
-                    UnitQuaternion::identity(),
-                ),
-                _ => Isometry3::identity(),
-            };
-            poses[j.child] = poses[j.parent] * j.origin * motion;
+            let position = j.dof.map_or(0.0, |d| q[d]);
+            poses[j.child] = poses[j.parent] * self.joint_transform(ji, position);
         }
         Ok(())
+    }
+
+    /// The pose of joint `joint`'s child link in its parent link's frame, at `position` (rad,
+    /// or m for a prismatic joint; ignored for a fixed one): the joint origin, then the
+    /// rotation about (or translation along) the axis.
+    pub fn joint_transform(&self, joint: usize, position: f64) -> Isometry3<f64> {
+        let j = &self.joints[joint];
+        let motion = match (j.kind, j.dof) {
+            (JointKind::Revolute | JointKind::Continuous, Some(_)) => Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_axis_angle(&j.axis, position),
+            ),
+            (JointKind::Prismatic, Some(_)) => Isometry3::from_parts(
+                Translation3::from(j.axis.into_inner() * position),
+                UnitQuaternion::identity(),
+            ),
+            _ => Isometry3::identity(),
+        };
+        j.origin * motion
     }
 
     /// Forward kinematics, allocating: see [`Self::link_poses_into`].

@@ -666,6 +666,26 @@ ros_message!(
     ]
 );
 
+impl Odometry {
+    /// The odometry's pose as the TF edge `header.frame_id` → `child_frame_id` (REP-105's
+    /// `odom` → `base_link`), with its stamp.
+    pub fn transform(&self) -> TransformStamped {
+        let p = &self.pose.pose;
+        TransformStamped {
+            header: self.header.clone(),
+            child_frame_id: self.child_frame_id.clone(),
+            transform: Transform {
+                translation: Vector3 {
+                    x: p.position.x,
+                    y: p.position.y,
+                    z: p.position.z,
+                },
+                rotation: p.orientation,
+            },
+        }
+    }
+}
+
 /// tf2_msgs/msg/TFMessage (topics `/tf` and `/tf_static`).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct TFMessage {

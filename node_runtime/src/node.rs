@@ -126,6 +126,17 @@ impl NodeSetup {
         }
     }
 
+    /// A boolean parameter, or `default`.
+    pub fn bool_param(&self, name: &str, default: bool) -> Result<bool, RosError> {
+        match self.params.get(name) {
+            None => Ok(default),
+            Some(Value::Bool(b)) => Ok(*b),
+            Some(other) => Err(RosError::Params(format!(
+                "parameter `{name}` must be true or false, not {other:?}"
+            ))),
+        }
+    }
+
     /// A number parameter, or `default`.
     pub fn f64_param(&self, name: &str, default: f64) -> Result<f64, RosError> {
         match self.params.get(name) {
@@ -246,6 +257,18 @@ impl RosNode {
         let topic = self.topic::<M>(name)?;
         self.node
             .create_publisher::<M>(&topic, Some(qos::publisher()))
+            .map_err(dds_err(format!("publisher {name}")))
+    }
+
+    /// A latched publisher of `M` on topic `name` ([`qos::latched`]: reliable, transient
+    /// local, keep last 1), for state a late subscriber must still get.
+    pub fn latched_publisher<M: RosMessage>(
+        &mut self,
+        name: &str,
+    ) -> Result<ros2_client::Publisher<M>, RosError> {
+        let topic = self.topic::<M>(name)?;
+        self.node
+            .create_publisher::<M>(&topic, Some(qos::latched()))
             .map_err(dds_err(format!("publisher {name}")))
     }
 

@@ -23,3 +23,15 @@ pub fn publisher() -> QosProfile {
             when_full: WhenFull::Fail,
         })
 }
+
+/// Latched state (`robot_description`, `/tf_static`): reliable, transient local, keep last
+/// 1, as robot_state_publisher and tf2's static broadcaster offer it: a subscriber that
+/// joins later, with transient local durability, still gets the last message.
+pub fn latched() -> QosProfile {
+    QosProfile::publisher_default()
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 })
+        .reliability(Reliability::Reliable {
+            when_full: WhenFull::Fail,
+        })
+}

@@ -211,7 +211,12 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         env,
         serial: Default::default(),
     })?;
-    for node in ["joint_bridge", "ik_solver", "gait_planner"] {
+    for node in [
+        "joint_bridge",
+        "ik_solver",
+        "gait_planner",
+        "robot_state_publisher",
+    ] {
         fleet.spawn(node)?;
     }
 

@@ -33,7 +33,13 @@ pub fn bin_dir() -> PathBuf {
         .parent()
         .unwrap()
         .to_path_buf();
-    for node in ["gait_planner", "ik_solver", "joint_bridge", "sim_bridge"] {
+    for node in [
+        "gait_planner",
+        "ik_solver",
+        "joint_bridge",
+        "sim_bridge",
+        "robot_state_publisher",
+    ] {
         assert!(
             dir.join(node).is_file(),
             "node binary {node} not built in {}: run cargo build --workspace (scripts/test does)",

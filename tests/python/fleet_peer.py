@@ -301,7 +301,10 @@ def scenario_launch(bin_dir, params):
     log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test")
     launcher = subprocess.Popen([biped, "launch", "--log-dir", log_dir], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     peer = Peer()
+    global NODES
+    NODES = NODES + ["robot_state_publisher"]
     out = {"nodes_seen": peer.wait_for_nodes(30.0), "node_names": peer.node_names()}
+    out.update(late_joiner(peer))
     stdout = stop_launcher(launcher, out)
     out["launcher_stdout"] = stdout
     pids = [int(line.split("(pid ")[1].split(")")[0]) for line in stdout.splitlines() if "(pid " in line]
@@ -317,7 +320,7 @@ def scenario_launch(bin_dir, params):
     # A launcher killed outright: its nodes notice and stop by themselves.
     launcher = subprocess.Popen([biped, "launch", "--log-dir", log_dir + "-kill"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     pids2 = []
-    while len(pids2) < 3:
+    while len(pids2) < len(NODES):
         line = launcher.stdout.readline()
         if not line:
             break
@@ -346,6 +349,28 @@ def scenario_launch(bin_dir, params):
     for pid in still:
         os.kill(pid, signal.SIGKILL)
     return out
+
+
+def late_joiner(peer, timeout=20.0):
+    """Subscribes, after the fleet has published them, to `robot_description` and
+    `/tf_static` with transient local durability, as RViz's RobotModel display and tf2's
+    listener do: what a late joiner gets."""
+    from rclpy.qos import DurabilityPolicy
+    from std_msgs.msg import String
+    from tf2_msgs.msg import TFMessage
+
+    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    got = {"robot_description": [], "tf_static": []}
+    n = peer.node
+    n.create_subscription(String, "/robot_description", lambda m: got["robot_description"].append(m.data), latched)
+    n.create_subscription(TFMessage, "/tf_static", lambda m: got["tf_static"].append(
+        [{"parent": t.header.frame_id, "child": t.child_frame_id,
+          "xyz": [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z],
+          "q": [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w]}
+         for t in m.transforms]), latched)
+    peer.spin(timeout, lambda: got["robot_description"] and got["tf_static"])
+    return got
 
 
 def stop_launcher(launcher, out):

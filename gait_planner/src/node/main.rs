@@ -11,10 +11,12 @@
 //! - subscribes `joint_states` and publishes `odom` (nav_msgs/msg/Odometry, frame `odom`,
 //!   child the base link, REP-105): leg odometry of the measured joints with the planted
 //!   foot of the plan as the fixed point ([`ik_solver::odometry`]), from the first joint
-//!   state that names every joint.
+//!   state that names every joint, and the same pose as the TF edge `odom` → base link on
+//!   `/tf` (tf2_msgs/msg/TFMessage), unless `publish_odom_tf` is false (another node, e.g.
+//!   robot_localization, owns that edge).
 //!
 //! Parameters: those of `config/gait.yaml` plus `robot_description_file` (URDF path; empty
-//! for the built-in robot). Bad commands are refused or clamped with a warning on `/rosout`
+//! for the built-in robot) and `publish_odom_tf` (default true), both read at start. Bad commands are refused or clamped with a warning on `/rosout`
 //! naming the field and value; the walk in progress is unaffected.
 //!
 //! The planner is stepped with tick times k / control_rate_hz, not with the measured time, so
@@ -31,7 +33,7 @@ use std::sync::{Arc, Mutex};
 use anyhow::Context as _;
 use biped_msgs::msg::{
     AnkleTargets, Covariance6, GaitPhase, Header, JointState, Odometry, Point, Pose,
-    PoseWithCovariance, Twist, TwistWithCovariance, Vector3, WalkCommand,
+    PoseWithCovariance, TFMessage, Twist, TwistWithCovariance, Vector3, WalkCommand,
 };
 use gait_planner::{
     GaitParams, GaitPlanner, GaitSample, PhaseKind, Stride, Velocity, VelocityFollower, WalkRequest,
@@ -41,6 +43,8 @@ use node_runtime::{NodeSetup, RosNode, TickSource};
 use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
+/// Whether the odometry is also sent as the TF edge odom → base link.
+const ODOM_TF_PARAM: &str = "publish_odom_tf";
 
 fn main() -> ExitCode {
     match run() {
@@ -58,7 +62,7 @@ fn gait_params(
 ) -> anyhow::Result<GaitParams> {
     let mut map = serde_norway::Mapping::new();
     for (k, v) in params {
-        if k != ROBOT_PARAM && k != "use_sim_time" {
+        if k != ROBOT_PARAM && k != ODOM_TF_PARAM && k != "use_sim_time" {
             map.insert(serde_norway::Value::String(k.clone()), v.clone());
         }
     }
@@ -68,6 +72,7 @@ fn gait_params(
 fn declared(
     params: &GaitParams,
     robot_file: &str,
+    odom_tf: bool,
 ) -> anyhow::Result<std::collections::BTreeMap<String, ParameterValue>> {
     let mut out = std::collections::BTreeMap::new();
     if let serde_norway::Value::Mapping(m) = serde_norway::to_value(params)? {
@@ -80,6 +85,7 @@ fn declared(
         ROBOT_PARAM.into(),
         ParameterValue::String(robot_file.into()),
     );
+    out.insert(ODOM_TF_PARAM.into(), ParameterValue::Boolean(odom_tf));
     Ok(out)
 }
 
@@ -398,6 +404,7 @@ fn run() -> anyhow::Result<()> {
         );
     }
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
+    let odom_tf = setup.bool_param(ODOM_TF_PARAM, true)?;
     let model = BipedModel::from_file_or_default(&robot_file, None)
         .with_context(|| format!("{ROBOT_PARAM} `{robot_file}`"))?;
     let mut params = gait_params(&setup.params)?;
@@ -413,11 +420,10 @@ fn run() -> anyhow::Result<()> {
     let check = {
         let (walking, shared, model) = (walking.clone(), shared.clone(), model.clone());
         move |name: &str, value: &ParameterValue| -> Result<(), String> {
-            if name == ROBOT_PARAM {
-                return Err(
-                    "robot_description_file is read at start-up; restart the node to change it"
-                        .into(),
-                );
+            if name == ROBOT_PARAM || name == ODOM_TF_PARAM {
+                return Err(format!(
+                    "{name} is read at start-up; restart the node to change it"
+                ));
             }
             if name == "use_sim_time" {
                 return Ok(());
@@ -451,7 +457,7 @@ fn run() -> anyhow::Result<()> {
             tx.send(candidate).map_err(|e| e.to_string())
         }
     };
-    let declared = declared(&params, &robot_file)?;
+    let declared = declared(&params, &robot_file, odom_tf)?;
     let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
     let stop = node_runtime::shutdown_flag()?;
     let phase_pub = ros.publisher::<GaitPhase>("gait/phase")?;
@@ -460,6 +466,11 @@ fn run() -> anyhow::Result<()> {
     let walk_cmd = ros.subscription::<WalkCommand>("walk_command")?;
     let joint_states = ros.subscription::<JointState>("joint_states")?;
     let odom_pub = ros.publisher::<Odometry>("odom")?;
+    let tf_pub = if odom_tf {
+        Some(ros.publisher::<TFMessage>("/tf")?)
+    } else {
+        None
+    };
     let mut odom = OdomPublisher::new(&model);
     let mut ticks = TickSource::new(&mut ros, rate)?;
     let executor = ros.executor()?;
@@ -566,6 +577,14 @@ fn run() -> anyhow::Result<()> {
                 &base_frame,
             ) {
                 Ok(Some(o)) => {
+                    if let Some(tf_pub) = &tf_pub {
+                        let tf = TFMessage {
+                            transforms: vec![o.transform()],
+                        };
+                        if let Err(e) = tf_pub.publish(tf) {
+                            ros.error_throttled("publish /tf", &format!("publish /tf: {e}"));
+                        }
+                    }
                     if let Err(e) = odom_pub.publish(o) {
                         ros.error_throttled("publish odom", &format!("publish odom: {e}"));
                     }

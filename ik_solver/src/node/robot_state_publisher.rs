@@ -1,0 +1,149 @@
+//! The `robot_state_publisher` ROS 2 node: the robot's URDF and link frames for RViz,
+//! Foxglove and tf2, as ROS's robot_state_publisher offers them, for any URDF.
+//!
+//! - publishes the URDF text on `robot_description` (std_msgs/msg/String; reliable,
+//!   transient local, depth 1: a subscriber that joins later still gets it);
+//! - publishes the fixed joints' frames once on `/tf_static` (tf2_msgs/msg/TFMessage,
+//!   transient local), stamped with the node's time at start;
+//! - subscribes `joint_states` (sensor_msgs/msg/JointState) and publishes, for each, the
+//!   frames of the movable joints it names on `/tf`, stamped with the joint state's stamp.
+//!   Names the URDF does not have are ignored; a NaN or infinite position is never sent
+//!   (that joint's frame is left out and the joint named in a warning, at most once a
+//!   second); a state whose names and positions differ in length is refused with a warning.
+//!
+//! Parameters: `robot_description_file` (URDF path; empty for the built-in robot),
+//! `frame_prefix` (put before every link name in the frames, e.g. `robot1/`; default empty).
+
+use std::process::ExitCode;
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+use anyhow::Context as _;
+use biped_msgs::msg::{Header, JointState, StringMsg, TFMessage, Time, TransformStamped};
+use ik_solver::{FrameTransform, FrameTree, RobotModel};
+use node_runtime::{NodeSetup, RosNode};
+use ros2_client::ParameterValue;
+use smol::future::FutureExt as _;
+
+const ROBOT_PARAM: &str = "robot_description_file";
+const PREFIX_PARAM: &str = "frame_prefix";
+
+fn main() -> ExitCode {
+    match run() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("robot_state_publisher: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// The frames as a TF message, each stamped `stamp`, link names prefixed.
+fn tf_message(frames: &[FrameTransform<'_>], stamp: Time, prefix: &str) -> TFMessage {
+    TFMessage {
+        transforms: frames
+            .iter()
+            .map(|f| TransformStamped {
+                header: Header {
+                    stamp,
+                    frame_id: format!("{prefix}{}", f.parent),
+                },
+                child_frame_id: format!("{prefix}{}", f.child),
+                transform: (&f.transform).into(),
+            })
+            .collect(),
+    }
+}
+
+fn run() -> anyhow::Result<()> {
+    let setup = NodeSetup::from_env("robot_state_publisher")?;
+    if !setup.own_args.is_empty() {
+        anyhow::bail!(
+            "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
+            setup.own_args
+        );
+    }
+    node_runtime::check_known(&setup.params, &[ROBOT_PARAM, PREFIX_PARAM])?;
+    let robot_file = setup.str_param(ROBOT_PARAM, "")?;
+    let prefix = setup.str_param(PREFIX_PARAM, "")?;
+    let urdf = if robot_file.is_empty() {
+        ik_solver::DEFAULT_URDF.to_owned()
+    } else {
+        std::fs::read_to_string(&robot_file)
+            .with_context(|| format!("{ROBOT_PARAM} `{robot_file}`: cannot read it"))?
+    };
+    let tree = FrameTree::new(
+        RobotModel::from_urdf_str(&urdf)
+            .with_context(|| format!("{ROBOT_PARAM} `{robot_file}`"))?,
+    );
+
+    let declared = [
+        (ROBOT_PARAM, ParameterValue::String(robot_file.clone())),
+        (PREFIX_PARAM, ParameterValue::String(prefix.clone())),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect();
+    let mut ros = RosNode::start(setup, &declared, Some(node_runtime::read_at_startup()))?;
+    let stop = node_runtime::shutdown_flag()?;
+    let description_pub = ros.latched_publisher::<StringMsg>("robot_description")?;
+    let static_pub = ros.latched_publisher::<TFMessage>("/tf_static")?;
+    let tf_pub = ros.publisher::<TFMessage>("/tf")?;
+    let sub = ros.subscription::<JointState>("joint_states")?;
+    let executor = ros.executor()?;
+
+    description_pub
+        .publish(StringMsg { data: urdf })
+        .map_err(|e| anyhow::anyhow!("publish robot_description: {e:?}"))?;
+    let fixed = tree.fixed();
+    static_pub
+        .publish(tf_message(&fixed, ros.node.time_now().into(), &prefix))
+        .map_err(|e| anyhow::anyhow!("publish /tf_static: {e:?}"))?;
+    ros.info(&format!(
+        "ready: robot {}, {} links, {} fixed and {} movable joints",
+        tree.model().name(),
+        tree.model().links().len(),
+        fixed.len(),
+        tree.model().dof_count()
+    ));
+
+    smol::block_on(executor.run(async {
+        while !stop.load(Ordering::SeqCst) {
+            let next = async { Some(sub.async_take().await) }.or(async {
+                smol::Timer::after(Duration::from_millis(100)).await;
+                None
+            });
+            let Some(received) = next.await else { continue };
+            let state = match received {
+                Ok((m, _)) => m,
+                Err(e) => {
+                    ros.warn(&format!("joint_states: unreadable message dropped: {e:?}"));
+                    continue;
+                }
+            };
+            match tree.moving(&state.name, &state.position) {
+                Ok((frames, skipped)) => {
+                    if !skipped.non_finite.is_empty() {
+                        ros.error_throttled(
+                            "non-finite",
+                            &format!(
+                                "joint_states: non-finite positions {:?}: those frames are not sent",
+                                skipped.non_finite
+                            ),
+                        );
+                    }
+                    if frames.is_empty() {
+                        continue;
+                    }
+                    let msg = tf_message(&frames, state.header.stamp, &prefix);
+                    if let Err(e) = tf_pub.publish(msg) {
+                        ros.error_throttled("publish /tf", &format!("publish /tf: {e:?}"));
+                    }
+                }
+                Err(e) => ros.error_throttled("joint_states", &format!("joint_states: {e}")),
+            }
+        }
+    }));
+    ros.info("shutting down");
+    Ok(())
+}
