@@ -8,8 +8,10 @@
 //!   `sim/base_pose` (geometry_msgs/msg/PoseStamped, ground truth of the base link in
 //!   `world_frame`), `sim/cop` (geometry_msgs/msg/PointStamped, the centre of pressure of the
 //!   floor contact forces, when the floor carries the robot), `sim/support_polygon`
-//!   (geometry_msgs/msg/PolygonStamped, the convex hull of the loaded soles), and `/clock`
-//!   (rosgraph_msgs/msg/Clock, last);
+//!   (geometry_msgs/msg/PolygonStamped, the convex hull of the loaded soles), the ground
+//!   truth again as the TF edge `world_frame` → `<base link>_gt` on `/tf`
+//!   (tf2_msgs/msg/TFMessage: beside the fleet's `odom` → base link, to compare), and
+//!   `/clock` (rosgraph_msgs/msg/Clock, last);
 //! - reports a fall once on `sim/fall` (std_msgs/msg/String, the reason) and `/rosout`.
 //!
 //! Time: with `lockstep` (default) the simulation steps to t + 1/clock_rate_hz only once the
@@ -38,7 +40,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use biped_msgs::msg::{
     Clock, Header, JointState, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose,
-    PoseStamped, StringMsg, Time,
+    PoseStamped, StringMsg, TFMessage, Time, Transform, TransformStamped,
 };
 use node_runtime::{NodeSetup, RosNode};
 use ros2_client::{ParameterValue, Publisher};
@@ -102,7 +104,10 @@ struct Outputs {
     support: Publisher<PolygonStamped>,
     fall: Publisher<StringMsg>,
     clock: Publisher<Clock>,
+    tf: Publisher<TFMessage>,
     world_frame: String,
+    /// The ground truth's child frame on `/tf`: the base link's name + `_gt`.
+    ground_truth_frame: String,
 }
 
 impl Outputs {
@@ -138,6 +143,18 @@ impl Outputs {
                 .publish(PoseStamped {
                     header: header(&self.world_frame),
                     pose: Pose::from(&base),
+                })
+                .map_err(|e| e.to_string()),
+        );
+        check(
+            "/tf",
+            self.tf
+                .publish(TFMessage {
+                    transforms: vec![TransformStamped {
+                        header: header(&self.world_frame),
+                        child_frame_id: self.ground_truth_frame.clone(),
+                        transform: Transform::from(&base),
+                    }],
                 })
                 .map_err(|e| e.to_string()),
         );
@@ -246,6 +263,8 @@ fn run() -> anyhow::Result<()> {
         );
     }
     let names: Vec<String> = sim.joint_names().to_vec();
+    let robot = sim.biped().robot();
+    let ground_truth_frame = format!("{}_gt", robot.links()[robot.root()].name);
     sim.stand(&vec![0.0; names.len()])?;
 
     let mut declared: BTreeMap<String, ParameterValue> = BTreeMap::from([
@@ -291,7 +310,9 @@ fn run() -> anyhow::Result<()> {
         support: ros.publisher::<PolygonStamped>("sim/support_polygon")?,
         fall: ros.publisher::<StringMsg>("sim/fall")?,
         clock: ros.publisher::<Clock>("/clock")?,
+        tf: ros.publisher::<TFMessage>("/tf")?,
         world_frame,
+        ground_truth_frame,
     };
     let executor = ros.executor()?;
     let index: HashMap<String, usize> = names

@@ -1,0 +1,145 @@
+//! What RViz, Foxglove and tf2 get from a walk: the TF tree in a bag of `biped walk`, read by
+//! an independent reader (rosbags) and checked against an independent kinematics library
+//! (Pinocchio) by tests/python/tf_check.py; the assertions are here. Each walk runs in a
+//! private network namespace on its own ROS_DOMAIN_ID (79, 80).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::{bin_dir, python, root};
+use serde_json::Value;
+
+/// `biped walk --steps 2 --bag` (extra args before) in a private network namespace, then
+/// tf_check.py on the bag: its JSON.
+fn walk_and_check(domain_id: u32, name: &str, urdf: &Path, args: &[&str]) -> Value {
+    let dir: PathBuf = std::env::temp_dir().join(format!("biped-tf-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = Command::new("unshare")
+        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
+        .arg(bin_dir().join("biped"))
+        .args(["walk", "--steps", "2"])
+        .args(args)
+        .arg("--bag")
+        .arg(dir.join("bag"))
+        .arg("--out")
+        .arg(dir.join("out"))
+        .env("ROS_DOMAIN_ID", domain_id.to_string())
+        .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
+        .output()
+        .expect("unshare runs (root needed for a private network namespace)");
+    assert!(
+        out.status.success(),
+        "biped walk failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let check = Command::new(python())
+        .arg(root().join("tests/python/tf_check.py"))
+        .arg(dir.join("bag"))
+        .arg(urdf)
+        .output()
+        .unwrap();
+    assert!(
+        check.status.success(),
+        "tf_check: {}",
+        String::from_utf8_lossy(&check.stderr)
+    );
+    serde_json::from_slice(&check.stdout).unwrap()
+}
+
+fn strings(v: &Value) -> BTreeSet<String> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap().to_owned())
+        .collect()
+}
+
+fn assert_tf_tree(v: &Value) {
+    let root_link = v["root"].as_str().unwrap();
+    // Every link of the URDF (as Pinocchio reads it) is a frame of the tree: the root, or
+    // the child of a /tf_static or /tf edge.
+    let links = strings(&v["links"]);
+    let mut covered: BTreeSet<String> = BTreeSet::from([root_link.to_owned()]);
+    for e in v["static_edges"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .chain(v["moving_edges"].as_array().unwrap())
+    {
+        covered.insert(e[1].as_str().unwrap().to_owned());
+    }
+    assert_eq!(covered, links, "frames on /tf and /tf_static vs URDF links");
+    assert!(
+        v["missing_links"].as_array().unwrap().is_empty(),
+        "{}",
+        v["missing_links"]
+    );
+    // Each joint state has its /tf message (but the first ones of the bag: the recorder
+    // subscribes each topic as it discovers it), and the links placed by it agree with
+    // Pinocchio's FK of the same positions.
+    let states = v["joint_states"].as_u64().unwrap();
+    let compared = v["compared"].as_u64().unwrap();
+    assert!(states > 500, "{states} joint states in the bag");
+    assert!(
+        compared * 100 >= states * 95,
+        "only {compared} of {states} joint states have a /tf message of their stamp"
+    );
+    let pos = v["max_position_error_m"].as_f64().unwrap();
+    let rot = v["max_rotation_error"].as_f64().unwrap();
+    assert!(pos < 1e-6, "links off Pinocchio's FK by {pos} m");
+    assert!(rot < 1e-6, "link rotations off Pinocchio's by {rot}");
+    // odom -> base link, one per /odom message, the same pose.
+    let odom = &v["odom_tf"];
+    let count = odom["count"].as_u64().unwrap();
+    assert!(count > 500, "{odom}");
+    assert_eq!(
+        strings(&odom["children"]),
+        BTreeSet::from([root_link.to_owned()])
+    );
+    assert!(
+        odom["matched_odom"].as_u64().unwrap() * 100 >= count * 95,
+        "{odom}"
+    );
+    assert!(odom["max_difference"].as_f64().unwrap() < 1e-12, "{odom}");
+    // The simulator's ground truth beside it, world -> base_gt; the robot walked about two
+    // steps (2 x 45 mm) forward by both, and the odometry ends within 2 cm of the truth.
+    let world = &v["world_tf"];
+    assert_eq!(
+        world["edges"],
+        serde_json::json!([["world", format!("{root_link}_gt")]])
+    );
+    let end = &world["end_xy"];
+    let (wx, wy) = (
+        end["world"][0].as_f64().unwrap(),
+        end["world"][1].as_f64().unwrap(),
+    );
+    let (ox, oy) = (
+        end["odom"][0].as_f64().unwrap(),
+        end["odom"][1].as_f64().unwrap(),
+    );
+    assert!(wx > 0.06, "the ground truth moved {wx} m");
+    assert!(
+        ((wx - ox).powi(2) + (wy - oy).powi(2)).sqrt() < 0.02,
+        "odometry ends at ({ox}, {oy}), the truth at ({wx}, {wy})"
+    );
+}
+
+#[test]
+fn a_walks_bag_holds_every_link_on_tf_as_pinocchio_places_it() {
+    let urdf = root().join("config/biped.urdf");
+    assert_tf_tree(&walk_and_check(79, "default", &urdf, &[]));
+}
+
+/// A robot we did not tune for: six joints per leg with hip yaw, renamed joints and
+/// links, flipped axes.
+#[test]
+fn the_six_joint_robots_tf_tree_agrees_with_pinocchio_too() {
+    let urdf = root().join("tests/data/biped6_renamed.urdf");
+    let robot = urdf.to_str().unwrap();
+    assert_tf_tree(&walk_and_check(80, "biped6", &urdf, &["--robot", robot]));
+}
