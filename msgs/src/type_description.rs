@@ -441,8 +441,8 @@ mod tests {
 
     #[test]
     fn an_unknown_type_is_named_in_the_error() {
-        let e = rihs01("tf2_msgs/msg/TFMessage").unwrap_err();
-        assert!(e.to_string().contains("'tf2_msgs/msg/TFMessage'"), "{e}");
+        let e = rihs01("sensor_msgs/msg/Imu").unwrap_err();
+        assert!(e.to_string().contains("'sensor_msgs/msg/Imu'"), "{e}");
         assert!(e.to_string().contains("sensor_msgs/msg/JointState"), "{e}");
     }
 }
