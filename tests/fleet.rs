@@ -35,6 +35,104 @@ fn peer(scenario: &str, domain_id: u32) -> Value {
         .unwrap_or_else(|e| panic!("peer output is not JSON ({e}): {stderr}"))
 }
 
+fn xy(p: &Value) -> [f64; 2] {
+    [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()]
+}
+
+/// Distance from `p` to the segment `a`-`b`.
+fn segment_distance(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
+    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+    let t = (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
+    ((p[0] - a[0] - t * dx).powi(2) + (p[1] - a[1] - t * dy).powi(2)).sqrt()
+}
+
+/// The gait/markers arrays rclpy decoded during the walk: one per tick of the plan, in the
+/// walk frame; the support polygon they draw (a closed, counter-clockwise line) holds the
+/// CoM sphere with the margin disc inside it at every tick; the swinging foot's landing is
+/// drawn during each swing, where the plan has that foot once the swing is over, and
+/// deleted otherwise.
+fn assert_markers_draw_the_balance(
+    v: &Value,
+    walk: &[(i64, &str)],
+    plan: &[gait_planner::GaitSample],
+    model: &BipedModel,
+) {
+    let by_stamp: std::collections::HashMap<i64, &Value> = v["markers"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|m| m["stamp"].is_i64())
+        .map(|m| (m["stamp"].as_i64().unwrap(), m))
+        .collect();
+    let mut swing_end: Option<usize> = None;
+    for (k, ((stamp, phase), row)) in walk.iter().zip(plan).enumerate() {
+        let m = by_stamp
+            .get(stamp)
+            .unwrap_or_else(|| panic!("tick {k} ({phase}): no gait/markers"));
+        assert_eq!(m["frame"], "odom");
+        let poly = &m["support_polygon"][0];
+        assert_eq!(poly["type"], 4, "a LINE_STRIP");
+        let pts: Vec<[f64; 2]> = poly["points"].as_array().unwrap().iter().map(xy).collect();
+        assert!(
+            pts.len() >= 5 && pts[0] == pts[pts.len() - 1],
+            "closed: {pts:?}"
+        );
+        let com = &m["com"][0];
+        assert_eq!(com["type"], 2, "a SPHERE");
+        let c = xy(&com["xyz"]);
+        let radius = m["com_margin"][0]["scale"][0].as_f64().unwrap() / 2.0;
+        assert!(radius > 0.0);
+        for w in pts.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let cross = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+            assert!(cross > 0.0, "tick {k} ({phase}): CoM {c:?} outside {pts:?}");
+            assert!(
+                segment_distance(c, a, b) >= radius - 1e-9,
+                "tick {k} ({phase}): CoM {c:?} within {radius} m of the edge {a:?}-{b:?}"
+            );
+        }
+        // The swing's last tick.
+        if swing_end.is_none_or(|e| e < k) {
+            swing_end = (k..plan.len())
+                .take_while(|&j| plan[j].phase == row.phase)
+                .last();
+        }
+        let steps = m["footsteps"].as_array().unwrap();
+        let drawn: Vec<&Value> = steps.iter().filter(|f| f["action"] == 0).collect();
+        if row.phase.is_swing() {
+            assert_eq!(drawn.len(), 1, "tick {k} ({phase}): {steps:?}");
+            let side = if drawn[0]["id"] == 0 {
+                Side::Left
+            } else {
+                Side::Right
+            };
+            assert_eq!(row.support, gait_planner::Support::on(side.other()));
+            // The first tick after the swing: the foot down where the swing took it.
+            let end = &plan[swing_end.unwrap() + 1];
+            let ankle = end.ankles_world_m[side.index()];
+            let want = model
+                .leg(side)
+                .sole
+                .corners([ankle.x, ankle.y], end.feet_yaw_rad[side.index()]);
+            let got: Vec<[f64; 2]> = drawn[0]["points"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(xy)
+                .collect();
+            for (g, w) in got.iter().zip(&want) {
+                assert!(
+                    (g[0] - w[0]).abs() < 1e-9 && (g[1] - w[1]).abs() < 1e-9,
+                    "tick {k} ({phase}): landing drawn at {got:?}, the foot lands at {want:?}"
+                );
+            }
+        } else {
+            assert!(drawn.is_empty(), "tick {k} ({phase}): {steps:?}");
+            assert_eq!(steps.len(), 2, "both footsteps deleted");
+        }
+    }
+}
+
 /// The planner said on /rosout that the cmd_vel stream stopped and it ended the walk.
 fn assert_timed_out(v: &Value) {
     assert!(
@@ -127,6 +225,8 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
             );
         }
     }
+
+    assert_markers_draw_the_balance(&v, &walk, &plan, &model);
 
     // The bad commands were refused with warnings naming field and value; the walk above
     // went on unchanged.

@@ -26,6 +26,6 @@ pub mod trajectory;
 pub use error::GaitError;
 pub use params::{GaitConfig, GaitParams};
 pub use phase::{PhaseKind, Support, WalkRequest};
-pub use planner::{GaitPlanner, GaitSample, plan_walk};
+pub use planner::{BalanceView, GaitPlanner, GaitSample, plan_walk};
 pub use stride::{Stride, StrideCommand, Velocity};
 pub use teleop::VelocityFollower;

@@ -69,6 +69,24 @@ impl GaitSample {
     }
 }
 
+/// A tick's balance as a viewer draws it (RViz or Foxglove markers, from the node): the
+/// support polygon, the CoM over it with its margin, and where the foot in the air lands.
+/// World (walk) frame, on the floor.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BalanceView {
+    /// The soles carrying the robot: their convex hull, counter-clockwise.
+    pub support_polygon: Vec<Xy>,
+    /// The planned CoM's floor projection (m).
+    pub com_xy: Xy,
+    /// Its signed distance to the polygon's edge (m), positive inside.
+    pub margin_m: f64,
+    /// The smallest margin the planner allows (`min_com_margin_m`).
+    pub min_margin_m: f64,
+    /// During a swing, the swinging foot's landing: its side and sole corners
+    /// (counter-clockwise); empty otherwise.
+    pub footsteps: Vec<(Side, [Xy; 4])>,
+}
+
 /// How the pelvis moves within a phase.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Drive {
@@ -569,6 +587,36 @@ impl GaitPlanner {
                 all.extend(corners(Side::Right));
                 convex_hull(&all)
             }
+        }
+    }
+
+    /// The balance of `sample`, the tick just planned by [`Self::update`], for a viewer.
+    pub fn balance_view(&self, sample: &GaitSample) -> BalanceView {
+        let ph = &self.phase;
+        let footsteps = match (ph.kind.is_swing(), ph.side) {
+            (true, Some(swing)) => {
+                let k = swing.index();
+                let ankle = ph.feet_to[k];
+                vec![(
+                    swing,
+                    self.model
+                        .leg(swing)
+                        .sole
+                        .corners([ankle.x, ankle.y], ph.feet_yaw_to[k]),
+                )]
+            }
+            _ => Vec::new(),
+        };
+        BalanceView {
+            support_polygon: self.support_polygon(
+                sample.support,
+                &sample.ankles_world_m,
+                &sample.feet_yaw_rad,
+            ),
+            com_xy: [sample.com_world_m.x, sample.com_world_m.y],
+            margin_m: sample.margin_m,
+            min_margin_m: self.cfg.min_com_margin_m,
+            footsteps,
         }
     }
 

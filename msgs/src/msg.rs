@@ -875,6 +875,114 @@ impl Marker {
     pub const DELETEALL: i32 = 3;
 }
 
+impl ColorRGBA {
+    /// An opaque or translucent colour.
+    pub const fn rgba(r: f32, g: f32, b: f32, a: f32) -> Self {
+        Self { r, g, b, a }
+    }
+}
+
+impl Marker {
+    fn base(header: &Header, ns: &str, id: i32, kind: i32, color: ColorRGBA) -> Self {
+        Self {
+            header: header.clone(),
+            ns: ns.to_owned(),
+            id,
+            r#type: kind,
+            action: Self::ADD,
+            color,
+            ..Self::default()
+        }
+    }
+
+    /// A closed line through floor points (x, y) at height `z_m`, `width_m` wide.
+    pub fn closed_line(
+        header: &Header,
+        ns: &str,
+        id: i32,
+        points_xy: &[[f64; 2]],
+        z_m: f64,
+        width_m: f64,
+        color: ColorRGBA,
+    ) -> Self {
+        let mut m = Self::base(header, ns, id, Self::LINE_STRIP, color);
+        m.points = points_xy
+            .iter()
+            .chain(points_xy.first())
+            .map(|p| Point {
+                x: p[0],
+                y: p[1],
+                z: z_m,
+            })
+            .collect();
+        m.scale.x = width_m;
+        m
+    }
+
+    /// A sphere of `diameter_m` at `at`.
+    pub fn sphere(
+        header: &Header,
+        ns: &str,
+        id: i32,
+        at: Point,
+        diameter_m: f64,
+        color: ColorRGBA,
+    ) -> Self {
+        let mut m = Self::base(header, ns, id, Self::SPHERE, color);
+        m.pose.position = at;
+        m.scale = Vector3 {
+            x: diameter_m,
+            y: diameter_m,
+            z: diameter_m,
+        };
+        m
+    }
+
+    /// A flat disc of `diameter_m` lying on the floor at (x, y), `z_m` up.
+    pub fn disc(
+        header: &Header,
+        ns: &str,
+        id: i32,
+        at: Point,
+        diameter_m: f64,
+        color: ColorRGBA,
+    ) -> Self {
+        let mut m = Self::base(header, ns, id, Self::CYLINDER, color);
+        m.pose.position = at;
+        m.scale = Vector3 {
+            x: diameter_m,
+            y: diameter_m,
+            z: 0.001,
+        };
+        m
+    }
+
+    /// Text facing the viewer at `at`, `height_m` tall.
+    pub fn text(
+        header: &Header,
+        ns: &str,
+        id: i32,
+        at: Point,
+        text: String,
+        height_m: f64,
+        color: ColorRGBA,
+    ) -> Self {
+        let mut m = Self::base(header, ns, id, Self::TEXT_VIEW_FACING, color);
+        m.pose.position = at;
+        m.scale.z = height_m;
+        m.text = text;
+        m
+    }
+
+    /// Removes the marker `ns`/`id` from the viewer.
+    pub fn delete(header: &Header, ns: &str, id: i32) -> Self {
+        Self {
+            action: Self::DELETE,
+            ..Self::base(header, ns, id, Self::ARROW, ColorRGBA::default())
+        }
+    }
+}
+
 /// visualization_msgs/msg/MarkerArray.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct MarkerArray {

@@ -203,9 +203,32 @@ def stop_nodes(procs):
     return errors
 
 
+def record_markers(peer):
+    """Every gait/markers array, decoded by rclpy: per array its stamp and, by namespace,
+    what each marker draws."""
+    from visualization_msgs.msg import MarkerArray
+    got = []
+
+    def on(m):
+        entry = {"stamp": stamp_ns(m.markers[0].header) if m.markers else None,
+                 "frame": m.markers[0].header.frame_id if m.markers else None}
+        for k in m.markers:
+            entry.setdefault(k.ns, []).append({
+                "id": k.id, "type": k.type, "action": k.action,
+                "xyz": [k.pose.position.x, k.pose.position.y, k.pose.position.z],
+                "scale": [k.scale.x, k.scale.y, k.scale.z],
+                "points": [[p.x, p.y] for p in k.points], "text": k.text})
+        got.append(entry)
+
+    peer.node.create_subscription(MarkerArray, "/gait/markers", on,
+                                  QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
+    return got
+
+
 def scenario_walk(bin_dir, params):
     procs = start_nodes(bin_dir, params)
     peer = Peer()
+    markers = record_markers(peer)
     out = {"nodes_seen": peer.wait_for_nodes()}
     out["node_names"] = peer.node_names()
     out["param_before"] = peer.get_param("gait_planner", "step_duration_s")
@@ -232,7 +255,8 @@ def scenario_walk(bin_dir, params):
     out["param_after"] = peer.get_param("gait_planner", "foot_lift_m")
     peer.spin(0.3)
     out.update(phases=peer.phases, commands=peer.commands, rosout=peer.rosout,
-               states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None)
+               states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None,
+               markers=markers)
     out["exits"] = stop_nodes(procs)
     return out
 
@@ -351,10 +375,11 @@ def scenario_launch(bin_dir, params):
     return out
 
 
-def late_joiner(peer, timeout=20.0):
-    """Subscribes, after the fleet has published them, to `robot_description` and
-    `/tf_static` with transient local durability, as RViz's RobotModel display and tf2's
-    listener do: what a late joiner gets."""
+def late_joiner(peer, timeout=30.0):
+    """A ROS node started after the fleet has published `robot_description` and
+    `/tf_static` (its own DDS participant, as RViz or `ros2 topic echo` started later would
+    be) subscribes to them with transient local durability, as RViz's RobotModel display and
+    tf2's listener do: what it gets. The test's peer keeps spinning meanwhile."""
     from rclpy.qos import DurabilityPolicy
     from std_msgs.msg import String
     from tf2_msgs.msg import TFMessage
@@ -362,14 +387,30 @@ def late_joiner(peer, timeout=20.0):
     latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
     got = {"robot_description": [], "tf_static": []}
-    n = peer.node
-    n.create_subscription(String, "/robot_description", lambda m: got["robot_description"].append(m.data), latched)
-    n.create_subscription(TFMessage, "/tf_static", lambda m: got["tf_static"].append(
+    ctx = rclpy.Context()
+    ctx.init()
+    late = rclpy.create_node("late_joiner", context=ctx)
+    executor = rclpy.executors.SingleThreadedExecutor(context=ctx)
+    executor.add_node(late)
+    late.create_subscription(String, "/robot_description", lambda m: got["robot_description"].append(m.data), latched)
+    late.create_subscription(TFMessage, "/tf_static", lambda m: got["tf_static"].append(
         [{"parent": t.header.frame_id, "child": t.child_frame_id,
           "xyz": [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z],
           "q": [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w]}
          for t in m.transforms]), latched)
-    peer.spin(timeout, lambda: got["robot_description"] and got["tf_static"])
+    try:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end and not (got["robot_description"] and got["tf_static"]):
+            executor.spin_once(timeout_sec=0.02)
+            rclpy.spin_once(peer.node, timeout_sec=0.001)
+        # Anything more (a second copy) would show here.
+        end = time.monotonic() + 0.5
+        while time.monotonic() < end:
+            executor.spin_once(timeout_sec=0.02)
+    finally:
+        executor.shutdown()
+        late.destroy_node()
+        ctx.shutdown()
     return got
 
 

@@ -8,6 +8,9 @@
 //!   ahead);
 //! - publishes `gait/phase` (biped_msgs/msg/GaitPhase) and `gait/ankle_targets`
 //!   (biped_msgs/msg/AnkleTargets) at `control_rate_hz`, idle or walking;
+//! - publishes `gait/markers` (visualization_msgs/msg/MarkerArray) every tick, in the walk's
+//!   frame `odom`: the planned support polygon, the CoM with its margin, and the swinging
+//!   foot's landing, for RViz and Foxglove;
 //! - subscribes `joint_states` and publishes `odom` (nav_msgs/msg/Odometry, frame `odom`,
 //!   child the base link, REP-105): leg odometry of the measured joints with the planted
 //!   foot of the plan as the fixed point ([`ik_solver::odometry`]), from the first joint
@@ -26,13 +29,15 @@
 //! `walk_command` with a `start_time` is taken at the first tick at or after it; the same
 //! stamped command received again is taken once.
 
+mod markers;
+
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{
-    AnkleTargets, Covariance6, GaitPhase, Header, JointState, Odometry, Point, Pose,
+    AnkleTargets, Covariance6, GaitPhase, Header, JointState, MarkerArray, Odometry, Point, Pose,
     PoseWithCovariance, TFMessage, Twist, TwistWithCovariance, Vector3, WalkCommand,
 };
 use gait_planner::{
@@ -466,6 +471,7 @@ fn run() -> anyhow::Result<()> {
     let walk_cmd = ros.subscription::<WalkCommand>("walk_command")?;
     let joint_states = ros.subscription::<JointState>("joint_states")?;
     let odom_pub = ros.publisher::<Odometry>("odom")?;
+    let markers_pub = ros.publisher::<MarkerArray>("gait/markers")?;
     let tf_pub = if odom_tf {
         Some(ros.publisher::<TFMessage>("/tf")?)
     } else {
@@ -564,6 +570,17 @@ fn run() -> anyhow::Result<()> {
             }
             let sent = to_msgs(&sample, now, &base_frame);
             publish(&ros, &targets_pub, &phase_pub, &sent);
+            let header = Header {
+                stamp: now,
+                frame_id: "odom".into(),
+            };
+            let view = planner.balance_view(&sample);
+            if let Err(e) = markers_pub.publish(markers::balance_markers(&view, &header)) {
+                ros.error_throttled(
+                    "publish gait/markers",
+                    &format!("publish gait/markers: {e}"),
+                );
+            }
             while let Ok(Some((js, _))) = joint_states.take() {
                 if let Some(w) = odom.joint_states(&model, &js) {
                     ros.warn(&w);

@@ -10,7 +10,9 @@
 //!   floor contact forces, when the floor carries the robot), `sim/support_polygon`
 //!   (geometry_msgs/msg/PolygonStamped, the convex hull of the loaded soles), the ground
 //!   truth again as the TF edge `world_frame` → `<base link>_gt` on `/tf`
-//!   (tf2_msgs/msg/TFMessage: beside the fleet's `odom` → base link, to compare), and
+//!   (tf2_msgs/msg/TFMessage: beside the fleet's `odom` → base link, to compare),
+//!   `sim/markers` (visualization_msgs/msg/MarkerArray: the measured centre of pressure and
+//!   support polygon, for RViz and Foxglove), and
 //!   `/clock` (rosgraph_msgs/msg/Clock, last);
 //! - reports a fall once on `sim/fall` (std_msgs/msg/String, the reason) and `/rosout`.
 //!
@@ -39,8 +41,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{
-    Clock, Header, JointState, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose,
-    PoseStamped, StringMsg, TFMessage, Time, Transform, TransformStamped,
+    Clock, ColorRGBA, Header, JointState, Marker, MarkerArray, Point, Point32, PointStamped,
+    Polygon, PolygonStamped, Pose, PoseStamped, StringMsg, TFMessage, Time, Transform,
+    TransformStamped,
 };
 use node_runtime::{NodeSetup, RosNode};
 use ros2_client::{ParameterValue, Publisher};
@@ -96,6 +99,35 @@ fn sim_config(setup: &NodeSetup) -> anyhow::Result<SimConfig> {
     Ok(cfg)
 }
 
+/// `sim/markers`: the measured centre of pressure (a red sphere, deleted while the floor
+/// does not carry the robot) and the measured support polygon (a yellow line), on the floor.
+fn measured_markers(header: &Header, cop: Option<[f64; 2]>, polygon: &[[f64; 2]]) -> MarkerArray {
+    const Z_M: f64 = 0.003;
+    let cop = match cop {
+        Some([x, y]) => Marker::sphere(
+            header,
+            "measured_cop",
+            0,
+            Point { x, y, z: Z_M },
+            0.01,
+            ColorRGBA::rgba(0.9, 0.1, 0.1, 1.0),
+        ),
+        None => Marker::delete(header, "measured_cop", 0),
+    };
+    let support = Marker::closed_line(
+        header,
+        "measured_support_polygon",
+        0,
+        polygon,
+        Z_M,
+        0.002,
+        ColorRGBA::rgba(0.95, 0.85, 0.1, 1.0),
+    );
+    MarkerArray {
+        markers: vec![cop, support],
+    }
+}
+
 /// The node's publishers.
 struct Outputs {
     joint_states: Publisher<JointState>,
@@ -105,6 +137,7 @@ struct Outputs {
     fall: Publisher<StringMsg>,
     clock: Publisher<Clock>,
     tf: Publisher<TFMessage>,
+    markers: Publisher<MarkerArray>,
     world_frame: String,
     /// The ground truth's child frame on `/tf`: the base link's name + `_gt`.
     ground_truth_frame: String,
@@ -186,6 +219,16 @@ impl Outputs {
                             .collect(),
                     },
                 })
+                .map_err(|e| e.to_string()),
+        );
+        check(
+            "sim/markers",
+            self.markers
+                .publish(measured_markers(
+                    &header(&self.world_frame),
+                    contacts.cop_world_m,
+                    &contacts.support_polygon,
+                ))
                 .map_err(|e| e.to_string()),
         );
         check(
@@ -311,6 +354,7 @@ fn run() -> anyhow::Result<()> {
         fall: ros.publisher::<StringMsg>("sim/fall")?,
         clock: ros.publisher::<Clock>("/clock")?,
         tf: ros.publisher::<TFMessage>("/tf")?,
+        markers: ros.publisher::<MarkerArray>("sim/markers")?,
         world_frame,
         ground_truth_frame,
     };
