@@ -332,6 +332,84 @@ fn a_rosbags_sqlite3_bag_replays_into_the_fleet_with_its_timing() {
     replay_into_the_fleet("sqlite3", 74);
 }
 
+/// Every topic a simulated walk publishes (TF, markers, odometry, the URDF, the simulator's
+/// ground truth, ...), recorded by `biped walk --bag`, then replayed by `biped replay` into
+/// an rclpy node subscribed to each with its type: every message that arrives decodes in
+/// rclpy and equals one the bag holds (decoded by rclpy from the bag as rosbags reads it),
+/// the latched topics (`robot_description`, `/tf_static`) arrive once to a subscriber that
+/// was there before the replay, and all but a few of the rest arrive.
+#[test]
+fn a_walks_bag_of_every_fleet_topic_replays_into_rclpy_with_each_type_intact() {
+    let dir = scratch("replay-all");
+    common::biped_walk_ok(
+        82,
+        &dir.join("out"),
+        &["--steps", "1", "--bag", dir.join("bag").to_str().unwrap()],
+    );
+    let v = peer("replay_all", &dir.join("bag"), 83);
+    assert_eq!(v["replay"]["returncode"], 0, "{:#}", v["replay"]);
+    assert!(
+        v["undecodable"].as_array().unwrap().is_empty(),
+        "{:#}",
+        v["undecodable"]
+    );
+    let topics = v["topics"].as_object().unwrap();
+    let mut types = std::collections::BTreeSet::new();
+    for (name, t) in topics {
+        let recorded: Vec<&str> = t["recorded"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m.as_str().unwrap())
+            .collect();
+        let received: Vec<&str> = t["received"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m.as_str().unwrap())
+            .collect();
+        if recorded.is_empty() {
+            continue;
+        }
+        types.insert(t["type"].as_str().unwrap().to_owned());
+        // Each message received is one recorded (as many times as it was recorded).
+        let mut left: std::collections::HashMap<&str, usize> = std::collections::HashMap::new();
+        for m in &recorded {
+            *left.entry(m).or_default() += 1;
+        }
+        for m in &received {
+            let n = left
+                .get_mut(m)
+                .unwrap_or_else(|| panic!("{name}: received a message the bag does not hold: {m}"));
+            assert!(*n > 0, "{name}: received more copies of {m} than recorded");
+            *n -= 1;
+        }
+        if t["latched"] == true {
+            assert_eq!(received.len(), recorded.len(), "{name}: latched");
+        } else {
+            assert!(
+                received.len() * 100 >= recorded.len() * 95,
+                "{name}: {} of {} messages arrived",
+                received.len(),
+                recorded.len()
+            );
+        }
+    }
+    for ty in [
+        "tf2_msgs/msg/TFMessage",
+        "visualization_msgs/msg/MarkerArray",
+        "nav_msgs/msg/Odometry",
+        "std_msgs/msg/String",
+        "sensor_msgs/msg/JointState",
+        "geometry_msgs/msg/PolygonStamped",
+        "rcl_interfaces/msg/Log",
+        "biped_msgs/msg/GaitPhase",
+    ] {
+        assert!(types.contains(ty), "no {ty} replayed: {types:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn the_timing_measure_sees_a_late_message() {
     // The measure itself: a message 6 ms late is seen as 6 ms off.

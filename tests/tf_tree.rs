@@ -10,7 +10,7 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{bin_dir, python, root};
+use common::{python, root};
 use serde_json::Value;
 
 /// `biped walk --steps 2 --bag` (extra args before) in a private network namespace, then
@@ -18,25 +18,10 @@ use serde_json::Value;
 fn walk_and_check(domain_id: u32, name: &str, urdf: &Path, args: &[&str]) -> Value {
     let dir: PathBuf = std::env::temp_dir().join(format!("biped-tf-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let out = Command::new("unshare")
-        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
-        .arg(bin_dir().join("biped"))
-        .args(["walk", "--steps", "2"])
-        .args(args)
-        .arg("--bag")
-        .arg(dir.join("bag"))
-        .arg("--out")
-        .arg(dir.join("out"))
-        .env("ROS_DOMAIN_ID", domain_id.to_string())
-        .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
-        .output()
-        .expect("unshare runs (root needed for a private network namespace)");
-    assert!(
-        out.status.success(),
-        "biped walk failed:\n{}\n{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let bag = dir.join("bag");
+    let mut walk_args = vec!["--steps", "2", "--bag", bag.to_str().unwrap()];
+    walk_args.extend(args);
+    common::biped_walk_ok(domain_id, &dir.join("out"), &walk_args);
     let check = Command::new(python())
         .arg(root().join("tests/python/tf_check.py"))
         .arg(dir.join("bag"))

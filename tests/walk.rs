@@ -7,9 +7,8 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-use common::bin_dir;
 use serde_json::Value;
 
 fn out_dir(name: &str) -> PathBuf {
@@ -20,18 +19,7 @@ fn out_dir(name: &str) -> PathBuf {
 
 /// `biped walk ARGS --out OUT` in a private network namespace.
 fn walk(domain_id: u32, out: &Path, args: &[&str]) -> Output {
-    let biped = bin_dir().join("biped");
-    Command::new("unshare")
-        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
-        .arg(&biped)
-        .arg("walk")
-        .args(args)
-        .arg("--out")
-        .arg(out)
-        .env("ROS_DOMAIN_ID", domain_id.to_string())
-        .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
-        .output()
-        .expect("unshare runs (root needed for a private network namespace)")
+    common::biped_walk(domain_id, out, args)
 }
 
 fn report(out: &Path) -> Value {

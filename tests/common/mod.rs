@@ -68,3 +68,30 @@ pub fn in_netns(script: &str, domain_id: u32) -> Command {
     .env_remove(node_runtime::LAUNCH_PARENT_ENV);
     c
 }
+
+/// `biped walk ARGS --out OUT` in a private network namespace (only loopback) on
+/// `domain_id`, `biped walk` itself restricting discovery to the host.
+pub fn biped_walk(domain_id: u32, out: &std::path::Path, args: &[&str]) -> std::process::Output {
+    Command::new("unshare")
+        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
+        .arg(bin_dir().join("biped"))
+        .arg("walk")
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .env("ROS_DOMAIN_ID", domain_id.to_string())
+        .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
+        .output()
+        .expect("unshare runs (root needed for a private network namespace)")
+}
+
+/// [`biped_walk`], which must succeed (its output in the panic otherwise).
+pub fn biped_walk_ok(domain_id: u32, out: &std::path::Path, args: &[&str]) {
+    let o = biped_walk(domain_id, out, args);
+    assert!(
+        o.status.success(),
+        "biped walk {args:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+}

@@ -4,6 +4,7 @@ The assertions are the Rust test's (tests/bag_fleet.rs).
 
     python bag_peer.py record BIN_DIR OUT_DIR     # record the walking fleet, two bags
     python bag_peer.py replay BIN_DIR BAG_DIR     # replay a bag into gait_planner + joint_bridge
+    python bag_peer.py replay_all BIN_DIR BAG_DIR # replay every topic of a bag into rclpy
 
 Run inside a private network namespace (the Rust test does it).
 """
@@ -104,9 +105,64 @@ def scenario_replay(bin_dir, bag_dir):
     return out
 
 
+def scenario_replay_all(bin_dir, bag_dir):
+    """`biped replay` of every topic of a bag (slowed to a quarter: rclpy's spinning is the
+    bottleneck) into an rclpy node subscribed to every topic with its type, transient local
+    where the bag recorded it so. Per topic: what the bag holds (rosbags reads the raw CDR,
+    rclpy decodes it) and what arrived (rclpy decodes it), each as msg_check's JSON of the
+    decoded message, so the Rust test can match one against the other."""
+    import yaml
+    from rclpy.qos import DurabilityPolicy
+    from rclpy.serialization import deserialize_message
+    from rosbags.rosbag2 import Reader
+
+    from msg_check import message_class, to_json
+
+    with open(os.path.join(bag_dir, "metadata.yaml")) as f:
+        meta = yaml.safe_load(f)["rosbag2_bagfile_information"]
+    topics = {}
+    for t in meta["topics_with_message_count"]:
+        md = t["topic_metadata"]
+        latched = any(q.get("durability") == "transient_local" for q in md["offered_qos_profiles"])
+        topics[md["name"]] = (md["type"], latched)
+    out = {"topics": {}, "undecodable": []}
+    recorded = {name: [] for name in topics}
+    with Reader(bag_dir) as reader:
+        for conn, _, raw in reader.messages():
+            cls = message_class(topics[conn.topic][0])
+            recorded[conn.topic].append(json.dumps(to_json(deserialize_message(bytes(raw), cls)), sort_keys=True))
+    peer = Peer()
+    received = {name: [] for name in topics}
+
+    def on(name, cls):
+        def cb(raw):
+            try:
+                received[name].append(json.dumps(to_json(deserialize_message(raw, cls)), sort_keys=True))
+            except Exception as e:  # noqa: BLE001 - reported, asserted on by the test
+                out["undecodable"].append(f"{name}: {e}")
+        return cb
+
+    for name, (type_name, latched) in topics.items():
+        qos = QoSProfile(depth=20000, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+        peer.node.create_subscription(message_class(type_name), name, on(name, message_class(type_name)), qos, raw=True)
+    peer.spin(1.0)
+    biped = os.path.join(bin_dir, "biped")
+    replay = subprocess.Popen([biped, "replay", bag_dir, "--rate", "0.25", "--wait-for-subscribers", "30"],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    spin_while(peer, replay, 240.0)
+    peer.spin(2.0)
+    out["replay"] = finish(replay)
+    for name, (type_name, latched) in topics.items():
+        out["topics"][name] = {"type": type_name, "latched": latched,
+                               "recorded": recorded[name], "received": received[name]}
+    return out
+
+
 def main():
     scenario, bin_dir, path = sys.argv[1], sys.argv[2], sys.argv[3]
-    result = {"record": scenario_record, "replay": scenario_replay}[scenario](bin_dir, path)
+    result = {"record": scenario_record, "replay": scenario_replay,
+              "replay_all": scenario_replay_all}[scenario](bin_dir, path)
     json.dump(result, sys.stdout)
 
 
