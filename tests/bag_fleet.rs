@@ -123,6 +123,32 @@ fn a_recorded_fleet_bag_is_read_by_two_independent_readers() {
         assert!(n > 500, "{name}: only {n} messages");
     }
     assert_eq!(topic(&mcap, "/walk_command")["count"], 1);
+    // Types outside our own table, described from the installed .msg files (the checker
+    // compared their hashes with rosbags' and rosidl's, and both readers decoded them): the
+    // peer's IMU at 20 Hz and the nodes' parameter events.
+    assert_eq!(topic(&mcap, "/imu")["type"], "sensor_msgs/msg/Imu");
+    assert!(topic(&mcap, "/imu")["count"].as_u64().unwrap() > 20);
+    assert_eq!(
+        topic(&mcap, "/parameter_events")["type"],
+        "rcl_interfaces/msg/ParameterEvent"
+    );
+    // Replayed from the bag alone, the IMU messages arrive intact, in order.
+    let replay = &v["imu_replay"];
+    assert_eq!(replay["returncode"], 0, "{replay:#}");
+    let got = v["imu_replayed"].as_array().unwrap();
+    assert_eq!(
+        got.len() as u64,
+        topic(&mcap, "/imu")["count"].as_u64().unwrap(),
+        "{replay:#}"
+    );
+    for w in got.windows(2) {
+        let (a, b) = (&w[0], &w[1]);
+        assert_eq!(b["sec"].as_i64().unwrap(), a["sec"].as_i64().unwrap() + 1);
+        let az = 9.81 + 0.001 * b["sec"].as_f64().unwrap();
+        assert!((b["az"].as_f64().unwrap() - az).abs() < 1e-12, "{b}");
+        assert_eq!(b["frame"], "imu_link");
+        assert_eq!(b["cov0"], -1.0);
+    }
     // The QoS the fleet's publishers offer: reliable, volatile.
     let q = &topic(&mcap, "/joint_commands")["qos"][0];
     assert_eq!(q["reliability"], "reliable", "{q}");

@@ -5,7 +5,7 @@
 
 use std::path::{Path, PathBuf};
 
-use biped_msgs::type_description::{known_types, rihs01};
+use biped_msgs::type_description::{TypeLibrary, known_types, rihs01};
 
 const WORKSPACE: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -87,4 +87,72 @@ fn every_known_type_hashes_as_rosbags_hashes_it() {
         checked += 1;
     }
     assert_eq!(checked, names.len(), "{text}");
+}
+
+/// Types outside our table, read from the `.msg` files the ROS packages installed
+/// (`TypeLibrary::add_from_prefixes`, as `biped record` does for a type it does not know):
+/// every message type of every package in the venv hashes as rosidl hashed it.
+#[test]
+fn every_installed_msg_file_hashes_as_rosidl_hashed_it() {
+    let share = venv_share();
+    let prefixes = vec![share.parent().unwrap().to_path_buf()];
+    let mut checked = 0;
+    let mut packages: Vec<_> = std::fs::read_dir(&share)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    packages.sort();
+    for pkg_dir in packages {
+        let Ok(entries) = std::fs::read_dir(pkg_dir.join("msg")) else {
+            continue;
+        };
+        let pkg = pkg_dir.file_name().unwrap().to_str().unwrap().to_owned();
+        for e in entries {
+            let path = e.unwrap().path();
+            if path.extension().is_none_or(|x| x != "msg") {
+                continue;
+            }
+            let name = path.file_stem().unwrap().to_str().unwrap();
+            let type_name = format!("{pkg}/msg/{name}");
+            let Ok(json) = std::fs::read_to_string(path.with_extension("json")) else {
+                continue;
+            };
+            let json: serde_json::Value = serde_json::from_str(&json).unwrap();
+            let theirs = json["type_hashes"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|h| h["type_name"] == type_name.as_str())
+                .and_then(|h| h["hash_string"].as_str())
+                .unwrap()
+                .to_owned();
+            let mut lib = TypeLibrary::new();
+            if lib.knows(&type_name) {
+                continue; // ours: the tests above
+            }
+            lib.add_from_prefixes(&type_name, &prefixes)
+                .unwrap_or_else(|e| panic!("{type_name}: {e}"));
+            assert_eq!(lib.rihs01(&type_name).unwrap(), theirs, "{type_name}");
+            // And through the definition a bag would store, read back by another library.
+            let mut again = TypeLibrary::new();
+            again
+                .add_ros2msg(&type_name, &lib.ros2msg_definition(&type_name).unwrap())
+                .unwrap();
+            assert_eq!(again.rihs01(&type_name).unwrap(), theirs, "{type_name}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 100, "only {checked} types checked");
+}
+
+#[test]
+fn a_type_without_a_msg_file_is_refused_naming_where_we_looked() {
+    let e = TypeLibrary::new()
+        .add_from_prefixes("no_such_pkg/msg/Thing", &["/nowhere".into()])
+        .unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("no_such_pkg/msg/Thing") && text.contains("/nowhere"),
+        "{text}"
+    );
 }

@@ -49,6 +49,17 @@ pub enum TypeError {
         known = known_type_names().join(", ")
     )]
     Unknown(String),
+    /// Not in our table, and no `.msg` file for it under the ament prefixes.
+    #[error(
+        "message type '{type_name}' is not one we know, and no ament prefix has its .msg file \
+         (share/<pkg>/msg/<Name>.msg under {prefixes:?}; set AMENT_PREFIX_PATH, e.g. source a ROS 2 setup)"
+    )]
+    NotFound {
+        /// The type.
+        type_name: String,
+        /// Where we looked.
+        prefixes: Vec<String>,
+    },
     /// A field type string we cannot parse.
     #[error(
         "message type '{type_name}': field '{field}' has a type we cannot read: '{field_type}'"
@@ -255,112 +266,342 @@ impl FieldType {
     }
 }
 
-/// A known type's fields, parsed.
-fn fields_of(type_name: &str) -> Result<Vec<(&'static str, FieldType)>, TypeError> {
-    let known = lookup(type_name)?;
-    known
-        .fields
-        .iter()
-        .map(|(name, ty)| {
-            parse_field_type(ty)
-                .map(|t| (*name, t))
-                .ok_or_else(|| TypeError::BadField {
-                    type_name: type_name.to_string(),
-                    field: name.to_string(),
-                    field_type: ty.to_string(),
-                })
-        })
-        .collect()
+/// Message types beyond our own table ([`known_types`]), read from `.msg` definitions: the
+/// `ros2msg` text a bag stores with each type, or the `.msg` files of ROS packages installed
+/// under an ament prefix (`<prefix>/share/<pkg>/msg/<Name>.msg`, where rosbag2 finds them).
+/// Our own table comes first: a type in it is never read again.
+#[derive(Debug, Clone, Default)]
+pub struct TypeLibrary {
+    /// `pkg/msg/Name` -> its fields (name, rosidl type), in order.
+    extra: BTreeMap<String, Vec<(String, String)>>,
 }
 
-/// The nested types a type reaches, transitively, by name (itself excluded), sorted.
-pub fn dependencies(type_name: &str) -> Result<Vec<String>, TypeError> {
-    let mut seen = BTreeMap::new();
-    let mut stack = vec![type_name.to_string()];
-    while let Some(t) = stack.pop() {
-        for (_, f) in fields_of(&t)? {
-            if !f.nested.is_empty() && f.nested != type_name && !seen.contains_key(&f.nested) {
-                seen.insert(f.nested.clone(), ());
-                stack.push(f.nested.clone());
+/// The folders of `AMENT_PREFIX_PATH` (colon-separated), where ROS packages are installed.
+pub fn ament_prefixes() -> Vec<std::path::PathBuf> {
+    std::env::var_os("AMENT_PREFIX_PATH")
+        .map(|v| {
+            std::env::split_paths(&v)
+                .filter(|p| !p.as_os_str().is_empty())
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// `pkg/msg/Name` of a `pkg/Name` or `pkg/msg/Name`.
+fn full_type_name(name: &str) -> Option<String> {
+    let (pkg, rest) = name.trim().split_once('/')?;
+    let rest = rest.strip_prefix("msg/").unwrap_or(rest);
+    // Packages are lower case, message names PascalCase (so `float65` is no message name).
+    let package = pkg.chars().next().is_some_and(|c| c.is_ascii_lowercase())
+        && pkg
+            .chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+    let message = rest.chars().next().is_some_and(|c| c.is_ascii_uppercase())
+        && rest.chars().all(|c| c.is_ascii_alphanumeric());
+    (package && message).then(|| format!("{pkg}/msg/{rest}"))
+}
+
+/// A `.msg` field type (`float64[<=3]`, `string<=10`, `Point`, `geometry_msgs/Point[]`) in
+/// rosidl's spelling, as [`RosMessage::FIELDS`] writes it (`sequence<double, 3>`,
+/// `string<10>`, `pkg/Point`, `sequence<geometry_msgs/Point>`). `None` if unreadable.
+fn msg_type_to_rosidl(package: &str, ty: &str) -> Option<String> {
+    let (element, array) = match ty.find('[') {
+        Some(i) => (&ty[..i], Some(ty[i + 1..].strip_suffix(']')?)),
+        None => (ty, None),
+    };
+    let element = if let Some((base, n)) = element.split_once("<=") {
+        let n: u64 = n.parse().ok()?;
+        match base {
+            "string" | "wstring" => format!("{base}<{n}>"),
+            _ => return None,
+        }
+    } else {
+        match element {
+            "bool" => "boolean".into(),
+            "byte" => "octet".into(),
+            "char" => "uint8".into(),
+            "float32" => "float".into(),
+            "float64" => "double".into(),
+            "int8" | "uint8" | "int16" | "uint16" | "int32" | "uint32" | "int64" | "uint64"
+            | "string" | "wstring" => element.into(),
+            nested => {
+                let full = if nested.contains('/') {
+                    full_type_name(nested)?
+                } else {
+                    full_type_name(&format!("{package}/{nested}"))?
+                };
+                full.replacen("/msg/", "/", 1)
             }
         }
+    };
+    Some(match array {
+        None => element,
+        Some("") => format!("sequence<{element}>"),
+        Some(n) => match n.strip_prefix("<=") {
+            Some(bound) => format!("sequence<{element}, {}>", bound.parse::<u64>().ok()?),
+            None => format!("{element}[{}]", n.parse::<u64>().ok()?),
+        },
+    })
+}
+
+/// The fields of one `.msg` text of type `type_name` (`pkg/msg/Name`), in rosidl's
+/// spelling: comments, blank lines and constants (`TYPE NAME=value`) skipped, default values
+/// (a third word) ignored, as they are by the type description; a message without fields
+/// gets rosidl's `uint8 structure_needs_at_least_one_member`.
+pub fn parse_msg(type_name: &str, text: &str) -> Result<Vec<(String, String)>, TypeError> {
+    let package = type_name.split('/').next().unwrap_or_default();
+    let bad = |field: &str, field_type: &str| TypeError::BadField {
+        type_name: type_name.to_string(),
+        field: field.to_string(),
+        field_type: field_type.to_string(),
+    };
+    let mut fields = Vec::new();
+    for line in text.lines() {
+        let code = line.split('#').next().unwrap_or_default();
+        let words: Vec<&str> = code.split_whitespace().collect();
+        let (ty, name) = match words.as_slice() {
+            [] => continue,
+            [ty] => return Err(bad("", ty)),
+            // A constant: `TYPE NAME=VALUE` or `TYPE NAME = VALUE`.
+            [_, name, ..] if name.contains('=') => continue,
+            [_, _, next, ..] if next.starts_with('=') => continue,
+            [ty, name, ..] => (*ty, *name),
+        };
+        let valid_name = name.chars().next().is_some_and(|c| c.is_ascii_lowercase())
+            && name
+                .chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+        if !valid_name {
+            return Err(bad(name, ty));
+        }
+        let rosidl = msg_type_to_rosidl(package, ty).ok_or_else(|| bad(name, ty))?;
+        fields.push((name.to_string(), rosidl));
     }
-    Ok(seen.into_keys().collect())
+    if fields.is_empty() {
+        // rosidl gives a message without fields (only constants) this one member.
+        fields.push(("structure_needs_at_least_one_member".into(), "uint8".into()));
+    }
+    Ok(fields)
+}
+
+impl TypeLibrary {
+    /// Our own table only.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Whether the type can be described: ours, or added.
+    pub fn knows(&self, type_name: &str) -> bool {
+        lookup(type_name).is_ok() || self.extra.contains_key(type_name)
+    }
+
+    /// Adds the types of a `ros2msg` definition (a bag's: the type's `.msg` text, then for
+    /// each dependency a line of `=`, `MSG: pkg/Name` and its text) that are not known yet.
+    pub fn add_ros2msg(&mut self, type_name: &str, definition: &str) -> Result<(), TypeError> {
+        let mut current = type_name.to_string();
+        let mut text = String::new();
+        let mut lines = definition.lines().peekable();
+        let mut sections = Vec::new();
+        while let Some(line) = lines.next() {
+            let is_separator = line.len() >= 10 && line.chars().all(|c| c == '=');
+            if is_separator && let Some(next) = lines.peek().and_then(|l| l.strip_prefix("MSG:")) {
+                let name = full_type_name(next).ok_or_else(|| {
+                    TypeError::Unknown(format!("{type_name}: definition names `{next}`"))
+                })?;
+                lines.next();
+                sections.push((
+                    std::mem::replace(&mut current, name),
+                    std::mem::take(&mut text),
+                ));
+                continue;
+            }
+            text.push_str(line);
+            text.push('\n');
+        }
+        sections.push((current, text));
+        for (name, text) in sections {
+            if !self.knows(&name) {
+                let fields = parse_msg(&name, &text)?;
+                self.extra.insert(name, fields);
+            }
+        }
+        // Every nested type must be described by now.
+        self.dependencies(type_name).map(|_| ())
+    }
+
+    /// Adds a type, and the types it uses, from the `.msg` files under the prefixes
+    /// (`<prefix>/share/<pkg>/msg/<Name>.msg`, the first prefix that has it).
+    pub fn add_from_prefixes(
+        &mut self,
+        type_name: &str,
+        prefixes: &[std::path::PathBuf],
+    ) -> Result<(), TypeError> {
+        let mut stack = vec![type_name.to_string()];
+        while let Some(t) = stack.pop() {
+            if self.knows(&t) {
+                continue;
+            }
+            let (pkg, name) = t
+                .split_once("/msg/")
+                .ok_or_else(|| TypeError::Unknown(t.clone()))?;
+            let text = prefixes
+                .iter()
+                .find_map(|p| {
+                    std::fs::read_to_string(
+                        p.join("share")
+                            .join(pkg)
+                            .join("msg")
+                            .join(format!("{name}.msg")),
+                    )
+                    .ok()
+                })
+                .ok_or_else(|| TypeError::NotFound {
+                    type_name: t.clone(),
+                    prefixes: prefixes.iter().map(|p| p.display().to_string()).collect(),
+                })?;
+            let fields = parse_msg(&t, &text)?;
+            for (_, ty) in &fields {
+                if let Some(f) = parse_field_type(ty).filter(|f| !f.nested.is_empty()) {
+                    stack.push(f.nested);
+                }
+            }
+            self.extra.insert(t, fields);
+        }
+        Ok(())
+    }
+
+    /// A type's fields, parsed: ours first, then the added ones.
+    fn fields_of(&self, type_name: &str) -> Result<Vec<(String, FieldType)>, TypeError> {
+        let owned: Vec<(String, String)> = match lookup(type_name) {
+            Ok(known) => known
+                .fields
+                .iter()
+                .map(|(n, t)| ((*n).to_string(), (*t).to_string()))
+                .collect(),
+            Err(e) => self.extra.get(type_name).cloned().ok_or(e)?,
+        };
+        owned
+            .into_iter()
+            .map(|(name, ty)| match parse_field_type(&ty) {
+                Some(t) => Ok((name, t)),
+                None => Err(TypeError::BadField {
+                    type_name: type_name.to_string(),
+                    field: name,
+                    field_type: ty,
+                }),
+            })
+            .collect()
+    }
+
+    /// The nested types a type reaches, transitively, by name (itself excluded), sorted.
+    pub fn dependencies(&self, type_name: &str) -> Result<Vec<String>, TypeError> {
+        let mut seen = BTreeMap::new();
+        let mut stack = vec![type_name.to_string()];
+        while let Some(t) = stack.pop() {
+            for (_, f) in self.fields_of(&t)? {
+                if !f.nested.is_empty() && f.nested != type_name && !seen.contains_key(&f.nested) {
+                    seen.insert(f.nested.clone(), ());
+                    stack.push(f.nested.clone());
+                }
+            }
+        }
+        Ok(seen.into_keys().collect())
+    }
+
+    fn description_json(&self, type_name: &str, out: &mut String) -> Result<(), TypeError> {
+        let fields = self.fields_of(type_name)?;
+        let _ = write!(
+            out,
+            "{{\"type_name\": {}, \"fields\": [",
+            json_str(type_name)
+        );
+        for (i, (name, f)) in fields.iter().enumerate() {
+            if i > 0 {
+                out.push_str(", ");
+            }
+            let _ = write!(
+                out,
+                "{{\"name\": {}, \"type\": {{\"type_id\": {}, \"capacity\": {}, \"string_capacity\": {}, \"nested_type_name\": {}}}}}",
+                json_str(name),
+                f.type_id(),
+                f.capacity,
+                f.string_capacity,
+                json_str(&f.nested)
+            );
+        }
+        out.push_str("]}");
+        Ok(())
+    }
+
+    /// The JSON text RIHS01 hashes (see the module doc).
+    pub fn hashable_json(&self, type_name: &str) -> Result<String, TypeError> {
+        let mut out = String::from("{\"type_description\": ");
+        self.description_json(type_name, &mut out)?;
+        out.push_str(", \"referenced_type_descriptions\": [");
+        for (i, dep) in self.dependencies(type_name)?.iter().enumerate() {
+            if i > 0 {
+                out.push_str(", ");
+            }
+            self.description_json(dep, &mut out)?;
+        }
+        out.push_str("]}");
+        Ok(out)
+    }
+
+    /// The type's RIHS01 type description hash, `RIHS01_<hex>`.
+    pub fn rihs01(&self, type_name: &str) -> Result<String, TypeError> {
+        let digest = Sha256::digest(self.hashable_json(type_name)?.as_bytes());
+        let mut s = String::from("RIHS01_");
+        for b in digest {
+            let _ = write!(s, "{b:02x}");
+        }
+        Ok(s)
+    }
+
+    fn msg_fields(&self, type_name: &str, out: &mut String) -> Result<(), TypeError> {
+        for (name, f) in self.fields_of(type_name)? {
+            let _ = writeln!(out, "{} {}", f.msg_syntax(), name);
+        }
+        Ok(())
+    }
+
+    /// The `ros2msg` definition text of a type with its dependencies (see the module doc).
+    pub fn ros2msg_definition(&self, type_name: &str) -> Result<String, TypeError> {
+        let mut out = String::new();
+        self.msg_fields(type_name, &mut out)?;
+        for dep in self.dependencies(type_name)? {
+            out.push_str(&"=".repeat(80));
+            let _ = writeln!(out, "\nMSG: {}", dep.replacen("/msg/", "/", 1));
+            self.msg_fields(&dep, &mut out)?;
+        }
+        Ok(out)
+    }
+}
+
+/// The nested types a type of our table reaches ([`TypeLibrary::dependencies`]).
+pub fn dependencies(type_name: &str) -> Result<Vec<String>, TypeError> {
+    TypeLibrary::new().dependencies(type_name)
+}
+
+/// [`TypeLibrary::hashable_json`] of a type of our table.
+pub fn hashable_json(type_name: &str) -> Result<String, TypeError> {
+    TypeLibrary::new().hashable_json(type_name)
+}
+
+/// [`TypeLibrary::rihs01`] of a type of our table.
+pub fn rihs01(type_name: &str) -> Result<String, TypeError> {
+    TypeLibrary::new().rihs01(type_name)
+}
+
+/// [`TypeLibrary::ros2msg_definition`] of a type of our table.
+pub fn ros2msg_definition(type_name: &str) -> Result<String, TypeError> {
+    TypeLibrary::new().ros2msg_definition(type_name)
 }
 
 fn json_str(s: &str) -> String {
     // Type and field names are ASCII identifiers; serde_json's escaping equals Python's
     // ensure_ascii=True for them.
     serde_json::to_string(s).unwrap_or_default()
-}
-
-fn description_json(type_name: &str, out: &mut String) -> Result<(), TypeError> {
-    let fields = fields_of(type_name)?;
-    let _ = write!(
-        out,
-        "{{\"type_name\": {}, \"fields\": [",
-        json_str(type_name)
-    );
-    for (i, (name, f)) in fields.iter().enumerate() {
-        if i > 0 {
-            out.push_str(", ");
-        }
-        let _ = write!(
-            out,
-            "{{\"name\": {}, \"type\": {{\"type_id\": {}, \"capacity\": {}, \"string_capacity\": {}, \"nested_type_name\": {}}}}}",
-            json_str(name),
-            f.type_id(),
-            f.capacity,
-            f.string_capacity,
-            json_str(&f.nested)
-        );
-    }
-    out.push_str("]}");
-    Ok(())
-}
-
-/// The JSON text RIHS01 hashes (see the module doc).
-pub fn hashable_json(type_name: &str) -> Result<String, TypeError> {
-    let mut out = String::from("{\"type_description\": ");
-    description_json(type_name, &mut out)?;
-    out.push_str(", \"referenced_type_descriptions\": [");
-    for (i, dep) in dependencies(type_name)?.iter().enumerate() {
-        if i > 0 {
-            out.push_str(", ");
-        }
-        description_json(dep, &mut out)?;
-    }
-    out.push_str("]}");
-    Ok(out)
-}
-
-/// The type's RIHS01 type description hash, `RIHS01_<hex>`.
-pub fn rihs01(type_name: &str) -> Result<String, TypeError> {
-    let digest = Sha256::digest(hashable_json(type_name)?.as_bytes());
-    let mut s = String::from("RIHS01_");
-    for b in digest {
-        let _ = write!(s, "{b:02x}");
-    }
-    Ok(s)
-}
-
-fn msg_fields(type_name: &str, out: &mut String) -> Result<(), TypeError> {
-    for (name, f) in fields_of(type_name)? {
-        let _ = writeln!(out, "{} {}", f.msg_syntax(), name);
-    }
-    Ok(())
-}
-
-/// The `ros2msg` definition text of a type with its dependencies (see the module doc).
-pub fn ros2msg_definition(type_name: &str) -> Result<String, TypeError> {
-    let mut out = String::new();
-    msg_fields(type_name, &mut out)?;
-    for dep in dependencies(type_name)? {
-        out.push_str(&"=".repeat(80));
-        let _ = writeln!(out, "\nMSG: {}", dep.replacen("/msg/", "/", 1));
-        msg_fields(&dep, &mut out)?;
-    }
-    Ok(out)
 }
 
 #[cfg(test)]
@@ -437,6 +678,80 @@ mod tests {
                  {sep}\nMSG: std_msgs/Header\nbuiltin_interfaces/Time stamp\nstring frame_id\n"
             )
         );
+    }
+
+    #[test]
+    fn a_msg_text_reads_as_rosidl_spells_it() {
+        let text = "# A comment line\n\
+            int32 MAX=5\n\
+            string NAME = \"x#y\"\n\
+            std_msgs/Header header  # trailing comment\n\
+            \n\
+            float64[<=3] small\n\
+            string<=10 label \"a\"\n\
+            Point[] pts\n\
+            char c\n\
+            byte b\n\
+            bool flag true\n\
+            uint8[4] raw\n\
+            wstring<=2[] words\n";
+        let got = parse_msg("my_pkg/msg/Thing", text).unwrap();
+        let want = [
+            ("header", "std_msgs/Header"),
+            ("small", "sequence<double, 3>"),
+            ("label", "string<10>"),
+            ("pts", "sequence<my_pkg/Point>"),
+            ("c", "uint8"),
+            ("b", "octet"),
+            ("flag", "boolean"),
+            ("raw", "uint8[4]"),
+            ("words", "sequence<wstring<2>>"),
+        ];
+        assert_eq!(
+            got,
+            want.map(|(a, b)| (a.to_string(), b.to_string())).to_vec()
+        );
+    }
+
+    #[test]
+    fn a_bad_msg_line_names_the_field_and_type() {
+        let e = parse_msg("p/msg/T", "float65 x\n").unwrap_err();
+        assert!(
+            e.to_string().contains("'x'") && e.to_string().contains("float65"),
+            "{e}"
+        );
+        let e = parse_msg("p/msg/T", "int32 Bad\n").unwrap_err();
+        assert!(e.to_string().contains("Bad"), "{e}");
+        assert!(parse_msg("p/msg/T", "int32\n").is_err());
+    }
+
+    #[test]
+    fn a_bags_definition_describes_a_type_we_do_not_have() {
+        let sep = "=".repeat(80);
+        let def = format!(
+            "# outer\nmy_pkg/Inner inner\nfloat64 x\n{sep}\nMSG: my_pkg/Inner\nint32 a\nbuiltin_interfaces/Time t\n"
+        );
+        let mut lib = TypeLibrary::new();
+        assert!(!lib.knows("my_pkg/msg/Outer"));
+        lib.add_ros2msg("my_pkg/msg/Outer", &def).unwrap();
+        assert!(lib.knows("my_pkg/msg/Outer") && lib.knows("my_pkg/msg/Inner"));
+        assert_eq!(
+            lib.dependencies("my_pkg/msg/Outer").unwrap(),
+            ["builtin_interfaces/msg/Time", "my_pkg/msg/Inner"]
+        );
+        // Written back: the same types, comments gone, dependencies sorted.
+        assert_eq!(
+            lib.ros2msg_definition("my_pkg/msg/Outer").unwrap(),
+            format!(
+                "my_pkg/Inner inner\nfloat64 x\n{sep}\nMSG: builtin_interfaces/Time\nint32 sec\nuint32 nanosec\n\
+                 {sep}\nMSG: my_pkg/Inner\nint32 a\nbuiltin_interfaces/Time t\n"
+            )
+        );
+        // A definition missing a nested type is refused, naming it.
+        let e = TypeLibrary::new()
+            .add_ros2msg("my_pkg/msg/Outer", "my_pkg/Gone g\n")
+            .unwrap_err();
+        assert!(e.to_string().contains("my_pkg/msg/Gone"), "{e}");
     }
 
     #[test]

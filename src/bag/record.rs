@@ -1,7 +1,9 @@
 //! `biped record`: subscribe over DDS and write a rosbag2 bag, as `ros2 bag record` does.
 //!
 //! Topics are found by discovery: every 100 ms the publishers DDS has seen are scanned, and
-//! a topic that was asked for (or any, with `all`) whose type we can describe is subscribed
+//! a topic that was asked for (or any, with `all`) whose type we can describe (ours, or one
+//! whose `.msg` file a ROS package installed under `AMENT_PREFIX_PATH`, as rosbag2 finds
+//! them: [`TypeLibrary`]) is subscribed
 //! with a QoS that matches its publishers and added to the bag with their offered QoS, its
 //! RIHS01 hash and its definition. Messages are stamped with their receive time (system
 //! clock, ns since the epoch). Stopping (the `stop` flag: Ctrl-C or SIGTERM, or the
@@ -15,7 +17,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result};
-use biped_msgs::type_description::{known_type_names, rihs01, ros2msg_definition};
+use biped_msgs::type_description::{TypeLibrary, ament_prefixes};
 use ros2_client::dds::rustdds::DomainParticipant;
 
 use super::BagWriter;
@@ -62,6 +64,10 @@ pub fn now_ns() -> i64 {
 
 struct Recorder {
     bag: BagWriter,
+    /// Our types, and those read from `.msg` files under `prefixes`.
+    types: TypeLibrary,
+    /// `AMENT_PREFIX_PATH`: where ROS packages' `.msg` files are.
+    prefixes: Vec<PathBuf>,
     readers: Vec<(usize, RawReader)>,
     subscribed: BTreeSet<String>,
     skipped: BTreeMap<String, String>,
@@ -95,16 +101,20 @@ impl Recorder {
                 .push(offered_qos(d));
         }
         for ((topic, type_name), qos) in offered {
-            let (hash, definition) = match (rihs01(&type_name), ros2msg_definition(&type_name)) {
-                (Ok(h), Ok(d)) => (h, d),
-                _ => {
-                    self.skip(
-                        topic,
-                        format!(
-                            "type {type_name} is not one we can describe (we know {})",
-                            known_type_names().join(", ")
-                        ),
-                    );
+            let described = if self.types.knows(&type_name) {
+                Ok(())
+            } else {
+                self.types.add_from_prefixes(&type_name, &self.prefixes)
+            };
+            let (hash, definition) = match described.and_then(|()| {
+                Ok((
+                    self.types.rihs01(&type_name)?,
+                    self.types.ros2msg_definition(&type_name)?,
+                ))
+            }) {
+                Ok(d) => d,
+                Err(e) => {
+                    self.skip(topic, e.to_string());
                     continue;
                 }
             };
@@ -153,6 +163,8 @@ pub fn record(
     let bag = BagWriter::create(&opts.dir, opts.storage)?;
     let mut rec = Recorder {
         bag,
+        types: TypeLibrary::new(),
+        prefixes: ament_prefixes(),
         readers: Vec::new(),
         subscribed: BTreeSet::new(),
         skipped: BTreeMap::new(),

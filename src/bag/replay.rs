@@ -19,7 +19,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
-use biped_msgs::type_description::rihs01;
+use biped_msgs::type_description::TypeLibrary;
 use ros2_client::dds::rustdds::DomainParticipant;
 
 use super::Bag;
@@ -71,12 +71,28 @@ struct Track {
     writer: RawWriter,
 }
 
-/// Refuses a topic we must not publish, naming why.
-fn check_topic(name: &str, type_name: &str, format: &str, bag_hash: &str) -> Result<()> {
+/// Refuses a topic we must not publish, naming why. A type that is not ours is described by
+/// the definition the bag stores with it (added to `types`), so any type can be replayed
+/// whose definition and hash agree.
+fn check_topic(
+    types: &mut TypeLibrary,
+    name: &str,
+    type_name: &str,
+    format: &str,
+    bag_hash: &str,
+    definition: &str,
+) -> Result<()> {
     if format != "cdr" {
         bail!("topic {name}: serialization format '{format}' is not cdr; cannot publish it");
     }
-    let ours = rihs01(type_name).with_context(|| format!("topic {name} cannot be published"))?;
+    if !types.knows(type_name) && !definition.is_empty() {
+        types
+            .add_ros2msg(type_name, definition)
+            .with_context(|| format!("topic {name}: the bag's definition of {type_name}"))?;
+    }
+    let ours = types
+        .rihs01(type_name)
+        .with_context(|| format!("topic {name} cannot be published"))?;
     if !bag_hash.is_empty() && bag_hash != ours {
         bail!(
             "topic {name}: type {type_name} was recorded with a different definition \
@@ -215,11 +231,19 @@ pub fn replay(
     }
     // Topic index in the bag → track.
     let mut tracks: BTreeMap<usize, Track> = BTreeMap::new();
+    let mut types = TypeLibrary::new();
     for (i, t) in bag.topics.iter().enumerate() {
         if !opts.topics.is_empty() && !opts.topics.contains(&t.name) {
             continue;
         }
-        check_topic(&t.name, &t.type_name, &t.serialization_format, &t.type_hash)?;
+        check_topic(
+            &mut types,
+            &t.name,
+            &t.type_name,
+            &t.serialization_format,
+            &t.type_hash,
+            &t.definition,
+        )?;
         let name = opts
             .remaps
             .iter()
