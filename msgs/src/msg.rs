@@ -631,18 +631,24 @@ ros_message!(
     ]
 );
 
+impl From<&Pose> for Transform {
+    /// The same placement: the position as the translation.
+    fn from(p: &Pose) -> Self {
+        Self {
+            translation: Vector3 {
+                x: p.position.x,
+                y: p.position.y,
+                z: p.position.z,
+            },
+            rotation: p.orientation,
+        }
+    }
+}
+
 impl From<&nalgebra::Isometry3<f64>> for Transform {
     /// The wire form of a frame's pose in its parent (the quaternion as x, y, z, w).
     fn from(p: &nalgebra::Isometry3<f64>) -> Self {
-        let pose = Pose::from(p);
-        Self {
-            translation: Vector3 {
-                x: pose.position.x,
-                y: pose.position.y,
-                z: pose.position.z,
-            },
-            rotation: pose.orientation,
-        }
+        Self::from(&Pose::from(p))
     }
 }
 
@@ -670,18 +676,10 @@ impl Odometry {
     /// The odometry's pose as the TF edge `header.frame_id` → `child_frame_id` (REP-105's
     /// `odom` → `base_link`), with its stamp.
     pub fn transform(&self) -> TransformStamped {
-        let p = &self.pose.pose;
         TransformStamped {
             header: self.header.clone(),
             child_frame_id: self.child_frame_id.clone(),
-            transform: Transform {
-                translation: Vector3 {
-                    x: p.position.x,
-                    y: p.position.y,
-                    z: p.position.z,
-                },
-                rotation: p.orientation,
-            },
+            transform: Transform::from(&self.pose.pose),
         }
     }
 }
@@ -938,7 +936,7 @@ impl Marker {
         m
     }
 
-    /// A flat disc of `diameter_m` lying on the floor at (x, y), `z_m` up.
+    /// A flat disc (1 mm thick) of `diameter_m`, level, centred at `at`.
     pub fn disc(
         header: &Header,
         ns: &str,
@@ -947,13 +945,9 @@ impl Marker {
         diameter_m: f64,
         color: ColorRGBA,
     ) -> Self {
-        let mut m = Self::base(header, ns, id, Self::CYLINDER, color);
-        m.pose.position = at;
-        m.scale = Vector3 {
-            x: diameter_m,
-            y: diameter_m,
-            z: 0.001,
-        };
+        let mut m = Self::sphere(header, ns, id, at, diameter_m, color);
+        m.r#type = Self::CYLINDER;
+        m.scale.z = 0.001;
         m
     }
 

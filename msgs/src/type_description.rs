@@ -42,13 +42,23 @@ use crate::msg::*;
 /// A type this crate cannot describe.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum TypeError {
-    /// Not in [`known_types`].
+    /// Not in [`known_types`] nor added to the [`TypeLibrary`] asked.
     #[error(
-        "message type '{0}' is not one we know (we know: {known}); \
-         only these can be recorded or replayed",
+        "message type '{0}' is not described: not in our own table ({known}) and not read \
+         from a .msg definition",
         known = known_type_names().join(", ")
     )]
     Unknown(String),
+    /// A `ros2msg` definition that names a dependency we cannot read.
+    #[error(
+        "the definition of '{type_name}' has a section `MSG:{section}`, which names no message type"
+    )]
+    BadDefinition {
+        /// The type being defined.
+        type_name: String,
+        /// What the section header says.
+        section: String,
+    },
     /// Not in our table, and no `.msg` file for it under the ament prefixes.
     #[error(
         "message type '{type_name}' is not one we know, and no ament prefix has its .msg file \
@@ -405,8 +415,9 @@ impl TypeLibrary {
         while let Some(line) = lines.next() {
             let is_separator = line.len() >= 10 && line.chars().all(|c| c == '=');
             if is_separator && let Some(next) = lines.peek().and_then(|l| l.strip_prefix("MSG:")) {
-                let name = full_type_name(next).ok_or_else(|| {
-                    TypeError::Unknown(format!("{type_name}: definition names `{next}`"))
+                let name = full_type_name(next).ok_or_else(|| TypeError::BadDefinition {
+                    type_name: type_name.to_string(),
+                    section: next.to_string(),
                 })?;
                 lines.next();
                 sections.push((

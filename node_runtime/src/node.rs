@@ -283,6 +283,29 @@ impl RosNode {
             .map_err(dds_err(format!("subscription {name}")))
     }
 
+    /// The next message of `sub` (topic `topic`), or `None` after `timeout` so that the
+    /// caller can look at its stop flag. An unreadable message is logged, naming the topic,
+    /// and skipped (`None`).
+    pub async fn take_within<M: RosMessage + 'static>(
+        &self,
+        sub: &ros2_client::Subscription<M>,
+        topic: &str,
+        timeout: std::time::Duration,
+    ) -> Option<M> {
+        use smol::future::FutureExt as _;
+        let next = async { Some(sub.async_take().await) }.or(async {
+            smol::Timer::after(timeout).await;
+            None
+        });
+        match next.await? {
+            Ok((m, _)) => Some(m),
+            Err(e) => {
+                self.warn(&format!("{topic}: unreadable message dropped: {e:?}"));
+                None
+            }
+        }
+    }
+
     /// An executor running the node's spinner (discovery, parameter services, `/clock`).
     pub fn executor(&mut self) -> Result<smol::LocalExecutor<'static>, RosError> {
         let spinner = self.node.spinner().map_err(|e| RosError::Dds {

@@ -20,7 +20,6 @@ use ik_solver::{AnkleTarget, BipedModel, Side};
 use nalgebra::Vector3;
 use node_runtime::{NodeSetup, RosNode};
 use ros2_client::ParameterValue;
-use smol::future::FutureExt as _;
 
 const ROBOT_PARAM: &str = "robot_description_file";
 
@@ -113,19 +112,11 @@ fn run() -> anyhow::Result<()> {
     let mut last_report: BTreeMap<String, Instant> = BTreeMap::new();
     smol::block_on(executor.run(async {
         while !stop.load(Ordering::SeqCst) {
-            let next = async { Some(sub.async_take().await) }.or(async {
-                smol::Timer::after(Duration::from_millis(100)).await;
-                None
-            });
-            let Some(received) = next.await else { continue };
-            let msg = match received {
-                Ok((m, _)) => m,
-                Err(e) => {
-                    ros.warn(&format!(
-                        "gait/ankle_targets: unreadable message dropped: {e:?}"
-                    ));
-                    continue;
-                }
+            let Some(msg) = ros
+                .take_within(&sub, "gait/ankle_targets", Duration::from_millis(100))
+                .await
+            else {
+                continue;
             };
             match solve(&model, &names, &dofs, &msg, &mut q) {
                 Ok((js, issues)) => {

@@ -23,7 +23,6 @@ use biped_msgs::msg::{Header, JointState, StringMsg, TFMessage, Time, TransformS
 use ik_solver::{FrameTransform, FrameTree, RobotModel};
 use node_runtime::{NodeSetup, RosNode};
 use ros2_client::ParameterValue;
-use smol::future::FutureExt as _;
 
 const ROBOT_PARAM: &str = "robot_description_file";
 const PREFIX_PARAM: &str = "frame_prefix";
@@ -109,17 +108,11 @@ fn run() -> anyhow::Result<()> {
 
     smol::block_on(executor.run(async {
         while !stop.load(Ordering::SeqCst) {
-            let next = async { Some(sub.async_take().await) }.or(async {
-                smol::Timer::after(Duration::from_millis(100)).await;
-                None
-            });
-            let Some(received) = next.await else { continue };
-            let state = match received {
-                Ok((m, _)) => m,
-                Err(e) => {
-                    ros.warn(&format!("joint_states: unreadable message dropped: {e:?}"));
-                    continue;
-                }
+            let Some(state) = ros
+                .take_within(&sub, "joint_states", Duration::from_millis(100))
+                .await
+            else {
+                continue;
             };
             match tree.moving(&state.name, &state.position) {
                 Ok((frames, skipped)) => {
