@@ -2,18 +2,19 @@
 //! forward kinematics of the URDF), the golden trajectory, and clear errors on bad input.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::collections::HashMap;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Stdio};
 
 use ik_solver::{BipedModel, Side};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
 const HEADER: &str = "t,phase,support,base_x,base_y,base_z,base_yaw,l_ankle_x,l_ankle_y,l_ankle_z,r_ankle_x,r_ankle_y,r_ankle_z,com_x,com_y,com_z,margin";
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use common::root;
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("biped-test-{}-{name}", std::process::id()));
@@ -26,6 +27,21 @@ fn biped(args: &[&str]) -> std::process::Output {
         .args(args)
         .output()
         .expect("biped runs")
+}
+
+/// `biped plan ARGS --csv DIR/plan.csv --no-plots`, which must succeed; its CSV.
+fn plan(dir: &Path, args: &[&str]) -> Csv {
+    let csv_path = dir.join("plan.csv");
+    let mut all = vec!["plan"];
+    all.extend_from_slice(args);
+    all.extend(["--csv", csv_path.to_str().unwrap(), "--no-plots"]);
+    let out = biped(&all);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    Csv::read(&csv_path)
 }
 
 struct Csv {
@@ -161,6 +177,101 @@ fn csv_has_the_contract_header_and_agrees_with_forward_kinematics() {
         (csv.num(last, "l_ankle_x") - 0.135).abs() < 1e-12
             && (csv.num(last, "r_ankle_x") - 0.135).abs() < 1e-12
     );
+}
+
+/// The OP3-layout robot's plan (hip yaw and roll apart, the pitch plane and the ankle roll
+/// axis offset sideways) through Pinocchio, an independent implementation: its FK of the
+/// planned joints puts each ankle point where the plan says, the soles level, and the CoM
+/// where the plan says. The ankle point is 22 mm ahead of the ankle roll joint on its axis
+/// (tests/data/make_op3_layout.py), a number of the robot, not of our code.
+#[test]
+fn the_op3_layout_plan_agrees_with_pinocchio() {
+    const ANKLE_POINT_IN_FOOT_M: [f64; 3] = [0.022, 0.0, 0.0];
+    let dir = tmp("op3-pin");
+    let urdf = root().join("tests/data/op3_layout.urdf");
+    let csv = plan(&dir, &["--robot", urdf.to_str().unwrap(), "--steps", "2"]);
+    let joints: Vec<String> = csv.header[17..].to_vec();
+    let rows: Vec<&Vec<String>> = csv.rows.iter().step_by(25).collect();
+    assert!(rows.len() > 20);
+    let requests: Vec<String> = rows
+        .iter()
+        .map(|row| {
+            let q: Vec<String> = joints
+                .iter()
+                .map(|j| format!("\"{j}\": {:?}", csv.num(row, j)))
+                .collect();
+            format!(
+                "{{\"base\": {{\"xyz\": [{:?}, {:?}, {:?}], \"rpy\": [0.0, 0.0, {:?}]}}, \"q\": {{{}}}, \"frames\": [\"l_foot\", \"r_foot\"]}}",
+                csv.num(row, "base_x"),
+                csv.num(row, "base_y"),
+                csv.num(row, "base_z"),
+                csv.num(row, "base_yaw"),
+                q.join(", ")
+            )
+        })
+        .collect();
+    let mut child = Command::new(common::python())
+        .arg(root().join("tests/python/pin_reference.py"))
+        .arg(&urdf)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(format!("[{}]", requests.join(",")).as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let answers: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(answers.len(), rows.len());
+    let mut worst = 0.0f64;
+    for (row, ans) in rows.iter().zip(&answers) {
+        let t = csv.num(row, "t");
+        for (foot, p) in [("l_foot", "l"), ("r_foot", "r")] {
+            let f = &ans["frames"][foot];
+            let xyz: Vec<f64> = (0..3).map(|i| f["xyz"][i].as_f64().unwrap()).collect();
+            let r = |i: usize, j: usize| f["rotation"][i][j].as_f64().unwrap();
+            for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+                let a = xyz[k]
+                    + (0..3)
+                        .map(|j| r(k, j) * ANKLE_POINT_IN_FOOT_M[j])
+                        .sum::<f64>();
+                let want = csv.num(row, &format!("{p}_ankle_{axis}"));
+                worst = worst.max((a - want).abs());
+                assert!(
+                    (a - want).abs() < 1e-6,
+                    "t = {t}: {p}_ankle_{axis} planned {want}, Pinocchio {a}"
+                );
+            }
+            // Level: the foot's z axis is the world's.
+            assert!(
+                (r(2, 2) - 1.0).abs() < 1e-9,
+                "t = {t}: {foot} tilted, R22 = {}",
+                r(2, 2)
+            );
+        }
+        for (k, axis) in ["x", "y", "z"].iter().enumerate() {
+            let c = ans["com"][k].as_f64().unwrap();
+            let want = csv.num(row, &format!("com_{axis}"));
+            assert!(
+                (c - want).abs() < 1e-6,
+                "t = {t}: com_{axis} planned {want}, Pinocchio {c}"
+            );
+        }
+    }
+    eprintln!(
+        "{} ticks against Pinocchio; worst ankle error {worst:e} m",
+        rows.len()
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 fn compare_csv(got: &Csv, want: &Csv) -> Result<(), String> {

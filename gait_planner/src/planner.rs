@@ -526,8 +526,10 @@ impl GaitPlanner {
     fn initial_feet(model: &BipedModel) -> [Point3<f64>; 2] {
         let mid = Self::hips_mid(model);
         Side::BOTH.map(|s| {
+            // Straight legs, no hip roll: each ankle point where the leg's offsets put it.
             let leg = model.leg(s);
-            Point3::new(0.0, leg.hip_in_base_m.y - mid.y, leg.ankle_to_sole_m)
+            let ankle = leg.hip_in_base_m + leg.straight_ankle_in_hip_m();
+            Point3::new(ankle.x - mid.x, ankle.y - mid.y, leg.ankle_to_sole_m)
         })
     }
 

@@ -1,9 +1,12 @@
 //! The paper's closed-form leg IK (ALGORITHM.md, "Leg IK, corrected"), mapped to each URDF
 //! joint's axis sign and zero pose.
 //!
-//! A target is the ankle-pitch axis position relative to the leg's hip point (the hip-roll
-//! joint origin), in base-frame axes, plus a foot yaw for 6-joint legs. The sole is kept level
-//! and, on 6-joint legs, turned by the yaw. No iteration: a handful of `atan2`/`acos`.
+//! A target is the ankle point (where the ankle axes cross) relative to the leg's hip point
+//! (where the hip yaw and roll axes cross), in base-frame axes, plus a foot yaw for 6-joint
+//! legs. The sole is kept level and, on 6-joint legs, turned by the yaw. Sideways and forward
+//! offsets between the axes (the leg layouts of servo humanoids) stay in closed form
+//! (ALGORITHM.md, "Leg layouts of real servo humanoids"). No iteration: a handful of
+//! `atan2`/`asin`/`acos`.
 //!
 //! Unreachable targets are pulled onto the reachable boundary and joint-limit violations are
 //! clamped; both are reported as [`IkIssue`]s naming the leg, the joint and the amount.
@@ -24,7 +27,7 @@ pub const REACH_TOLERANCE_M: f64 = 1e-12;
 /// Where one ankle should be.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AnkleTarget {
-    /// Ankle-pitch axis position relative to the hip point, base-frame axes (m).
+    /// Ankle point relative to the hip point, base-frame axes (m) (see [`Leg`](crate::Leg)).
     pub ankle_in_hip_m: Vector3<f64>,
     /// Foot yaw relative to the base (rad); must be 0 on 5-joint legs.
     pub foot_yaw_rad: f64,
@@ -74,6 +77,16 @@ pub enum IkIssue {
         /// The angle sent instead (rad).
         clamped_rad: f64,
     },
+    /// The target is closer to the hip roll axis than the leg's sideways offset e between
+    /// the roll axis and the ankle point: no roll puts the ankle there.
+    InsideLateralOffset {
+        /// Which leg.
+        side: Side,
+        /// Distance asked for, from the hip roll axis (m).
+        distance_m: f64,
+        /// The leg's sideways offset e (m).
+        offset_m: f64,
+    },
     /// A foot yaw was asked of a leg without a hip yaw joint; 0 was used.
     NoYawJoint {
         /// Which leg.
@@ -114,6 +127,15 @@ impl fmt::Display for IkIssue {
                 f,
                 "{side} leg: {role} joint `{joint}` needs {requested_rad:.4} rad, beyond its limit by {:.4} rad; clamped to {clamped_rad:.4} rad",
                 (requested_rad - clamped_rad).abs()
+            ),
+            IkIssue::InsideLateralOffset {
+                side,
+                distance_m,
+                offset_m,
+            } => write!(
+                f,
+                "{side} leg: ankle target {distance_m:.4} m from the hip roll axis is inside the leg's sideways offset {:.4} m; the leg was laid sideways",
+                offset_m.abs()
             ),
             IkIssue::NoYawJoint {
                 side,
@@ -245,11 +267,31 @@ impl BipedModel {
         // Into the yawed hip frame; the yaw axis passes through the hip point.
         let p = Rotation3::from_axis_angle(&Vector3::z_axis(), -yaw) * p;
 
-        // Hip roll tilts the leg plane to contain the ankle; the pitch axis hangs
-        // `hip_roll_to_pitch_m` below the roll axis in that plane.
-        let roll = p.y.atan2(-p.z);
-        let mut x = p.x;
-        let mut z = p.y.hypot(p.z) - leg.hip_roll_to_pitch_m;
+        // Hip roll turns the leg's plane, which keeps the distance e from the roll axis,
+        // until it contains the ankle: the tangent from the ankle to the circle of radius e
+        // (ALGORITHM.md, "Leg layouts of real servo humanoids"). With e = 0 it is the
+        // paper's atan2(y, -z).
+        let e = leg.ankle_lateral_m;
+        let r = p.y.hypot(p.z);
+        let s = if r < e.abs() {
+            issues.push(IkIssue::InsideLateralOffset {
+                side,
+                distance_m: r,
+                offset_m: e,
+            });
+            e.signum()
+        } else if r > 0.0 {
+            e / r
+        } else {
+            // The target on the roll axis of a leg without offset: no roll.
+            0.0
+        };
+        let roll = p.y.atan2(-p.z) - s.asin();
+        // The reach within the leg's plane, down from the roll axis; the pitch axis sits
+        // `hip_roll_to_pitch_m` below the roll axis and `hip_pitch_forward_m` ahead of the hip.
+        let reach_in_plane = r * (1.0 - s * s).sqrt();
+        let mut x = p.x - leg.hip_pitch_forward_m;
+        let mut z = reach_in_plane - leg.hip_roll_to_pitch_m;
 
         // The triangle hip pitch - knee - ankle pitch.
         let (l1, l2) = (leg.thigh_m, leg.shin_m);

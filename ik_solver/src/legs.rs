@@ -190,7 +190,7 @@ pub struct LegJoint {
 }
 
 /// The sole rectangle of a foot, in base-frame axes at zero joint angles, relative to the
-/// point on the sole plane straight below the ankle-pitch axis.
+/// point on the sole plane straight below the ankle point (where the ankle axes cross).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SoleRect {
     /// Rear edge (m).
@@ -233,12 +233,23 @@ pub struct Leg {
     pub side: Side,
     /// The joints, indexed by [`JointRole`] (`joints[0]`, the hip yaw, is `None` on 5-joint legs).
     pub joints: [Option<LegJoint>; 6],
-    /// The hip point: the hip-roll joint origin, in the base frame (m). IK targets are given
-    /// relative to it. It does not move with the leg's joints.
+    /// The hip point H, in the base frame at zero angles (m): where the hip yaw axis crosses
+    /// the hip roll axis (a leg without yaw: the point of the roll axis level with the hip
+    /// pitch axis in x). IK targets are given relative to it. It does not move with the leg's
+    /// joints.
     pub hip_in_base_m: Vector3<f64>,
-    /// Distance along the leg from the hip-roll axis down to the hip-pitch axis (m); 0 when
-    /// they intersect.
+    /// h_h: height of the hip roll axis above the hip pitch axis (m); 0 when they intersect.
     pub hip_roll_to_pitch_m: f64,
+    /// a_h: forward (x) distance from the hip point to the hip pitch axis at zero angles (m).
+    pub hip_pitch_forward_m: f64,
+    /// e: sideways (y) distance from the hip point to the ankle point at zero angles (m): the
+    /// sum of the chain's sideways steps between the hip roll axis, the pitch plane and the
+    /// ankle roll axis. The leg's plane stays tangent to a circle of this radius around the
+    /// roll axis (ALGORITHM.md, "Leg layouts of real servo humanoids").
+    pub ankle_lateral_m: f64,
+    /// The ankle point A (where the ankle pitch axis crosses the ankle roll axis) in the ankle
+    /// roll joint's frame (m). It lies on the roll axis, so no ankle angle moves it there.
+    pub ankle_in_roll_joint_m: Vector3<f64>,
     /// L1: hip-pitch axis to knee axis (m).
     pub thigh_m: f64,
     /// L2: knee axis to ankle-pitch axis (m).
@@ -247,7 +258,7 @@ pub struct Leg {
     pub thigh_angle0_rad: f64,
     /// Forward angle of the shin (knee → ankle pitch) from straight down at zero angles (rad).
     pub shin_angle0_rad: f64,
-    /// h_a: ankle-pitch axis to the sole plane (m).
+    /// h_a: ankle point to the sole plane (m).
     pub ankle_to_sole_m: f64,
     /// The sole rectangle around the ankle.
     pub sole: SoleRect,
@@ -272,13 +283,22 @@ impl Leg {
             .into_iter()
             .filter_map(|r| self.joint(r).map(|j| (r, j)))
     }
-    /// Ankle-pitch axis position in the world (m) from link poses.
+    /// The ankle point (where the ankle axes cross) in the world (m), from link poses.
     pub fn ankle_world(&self, robot: &RobotModel, poses: &[Isometry3<f64>]) -> Point3<f64> {
         let j = self
-            .joint(JointRole::AnklePitch)
+            .joint(JointRole::AnkleRoll)
             .map(|j| j.joint)
             .unwrap_or_default();
-        Point3::from(robot.joint_frame(poses, j).translation.vector)
+        robot.joint_frame(poses, j) * Point3::from(self.ankle_in_roll_joint_m)
+    }
+    /// The ankle point relative to the hip point with the leg straight below the hip pitch
+    /// axis and no hip roll (m): where the feet stand at zero angles.
+    pub fn straight_ankle_in_hip_m(&self) -> Vector3<f64> {
+        Vector3::new(
+            self.hip_pitch_forward_m,
+            self.ankle_lateral_m,
+            -(self.hip_roll_to_pitch_m + self.thigh_m + self.shin_m),
+        )
     }
     /// Longest reach from the hip-pitch axis to the ankle-pitch axis (m).
     pub fn max_reach_m(&self) -> f64 {
@@ -611,45 +631,38 @@ fn leg_geometry(
         zero.origin(robot, ar),
     );
 
-    if let Some(yaw) = ids[0] {
-        let off = (p_roll - zero.origin(robot, yaw)).xy().norm();
-        if off > TOL_M {
-            return Err(bad(format!(
-                "the hip yaw axis of joint `{}` passes {off:.6} m from the hip roll joint `{}`; the closed form needs them to meet",
-                name(yaw),
-                name(roll)
-            )));
+    // The legs are read as lines: a joint origin may slide along its own axis without
+    // changing any pose (ALGORITHM.md, "Leg layouts of real servo humanoids").
+    let p_hip = match ids[0] {
+        Some(yaw) => {
+            // The yaw axis (vertical) crosses the roll axis (along x) where y agrees.
+            let p_yaw = zero.origin(robot, yaw);
+            let dy = p_yaw.y - p_roll.y;
+            if dy.abs() > TOL_M {
+                return Err(bad(format!(
+                    "the hip yaw axis of joint `{}` passes {:.6} m {} of the hip roll axis of joint `{}`; the closed form needs them to cross (the yaw joint may sit anywhere above the roll axis, fore or aft of the roll joint, but not beside it)",
+                    name(yaw),
+                    dy.abs(),
+                    if dy > 0.0 { "left" } else { "right" },
+                    name(roll)
+                )));
+            }
+            Vector3::new(p_yaw.x, p_roll.y, p_roll.z)
         }
-    }
-    let hip_off = p_pitch - p_roll;
-    if hip_off.xy().norm() > TOL_M || hip_off.z > TOL_M {
+        None => Vector3::new(p_pitch.x, p_roll.y, p_roll.z),
+    };
+    // The ankle pitch axis (along y) crosses the ankle roll axis (along x) where z agrees.
+    let dz = p_ar.z - p_ap.z;
+    if dz.abs() > TOL_M {
         return Err(bad(format!(
-            "hip pitch joint `{}` sits ({:.6}, {:.6}, {:.6}) m from hip roll joint `{}`; only an offset straight down the leg is supported",
-            name(pitch),
-            hip_off.x,
-            hip_off.y,
-            hip_off.z,
-            name(roll)
-        )));
-    }
-    for (a, pa, b, pb) in [(pitch, p_pitch, knee, p_knee), (knee, p_knee, ap, p_ap)] {
-        let dy = pb.y - pa.y;
-        if dy.abs() > TOL_M {
-            return Err(bad(format!(
-                "joint `{}` is {dy:.6} m sideways of joint `{}`; hip pitch, knee and ankle pitch must lie in one sagittal plane",
-                name(b),
-                name(a)
-            )));
-        }
-    }
-    let ankle_off = (p_ar - p_ap).norm();
-    if ankle_off > TOL_M {
-        return Err(bad(format!(
-            "ankle roll joint `{}` is {ankle_off:.6} m from ankle pitch joint `{}`; the closed form needs the ankle axes to intersect",
+            "the ankle roll axis of joint `{}` passes {:.6} m {} the ankle pitch axis of joint `{}`; the closed form needs the ankle axes to cross (the roll joint may sit anywhere along its axis, fore or aft, and sideways of the pitch joint, but not above or below it)",
             name(ar),
+            dz.abs(),
+            if dz > 0.0 { "above" } else { "below" },
             name(ap)
         )));
     }
+    let p_ankle = Vector3::new(p_ap.x, p_ar.y, p_ap.z);
     let thigh = p_knee - p_pitch;
     let shin = p_ap - p_knee;
     let (l1, l2) = (thigh.xz().norm(), shin.xz().norm());
@@ -710,8 +723,8 @@ fn leg_geometry(
             "the sole box of link `{sole_link}` is not level at zero joint angles"
         )));
     }
-    let xs = on_floor.iter().map(|c| c.x - p_ap.x);
-    let ys = on_floor.iter().map(|c| c.y - p_ap.y);
+    let xs = on_floor.iter().map(|c| c.x - p_ankle.x);
+    let ys = on_floor.iter().map(|c| c.y - p_ankle.y);
     let rect = SoleRect {
         x_min_m: xs.clone().fold(f64::INFINITY, f64::min),
         x_max_m: xs.fold(f64::NEG_INFINITY, f64::max),
@@ -731,7 +744,7 @@ fn leg_geometry(
             "the sole box of link `{sole_link}` is turned about z; the sole must be aligned with the base x and y axes"
         )));
     }
-    let ankle_to_sole = p_ap.z - bottom;
+    let ankle_to_sole = p_ankle.z - bottom;
     if ankle_to_sole <= 0.0 {
         return Err(bad(format!(
             "the sole of link `{sole_link}` is not below the ankle pitch joint `{}`",
@@ -740,11 +753,16 @@ fn leg_geometry(
     }
 
     let angle = |v: Vector3<f64>| v.x.atan2(-v.z);
+    let ankle_in_roll_joint_m =
+        (robot.joint_frame(&zero.poses, ar).inverse() * Point3::from(p_ankle)).coords;
     Ok(Leg {
         side,
         joints,
-        hip_in_base_m: p_roll,
-        hip_roll_to_pitch_m: -hip_off.z,
+        hip_in_base_m: p_hip,
+        hip_roll_to_pitch_m: p_hip.z - p_pitch.z,
+        hip_pitch_forward_m: p_pitch.x - p_hip.x,
+        ankle_lateral_m: p_ankle.y - p_hip.y,
+        ankle_in_roll_joint_m,
         thigh_m: l1,
         shin_m: l2,
         thigh_angle0_rad: angle(thigh),

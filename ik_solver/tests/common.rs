@@ -24,3 +24,11 @@ pub fn foot_tilt_rad(b: &BipedModel, side: Side, q: &[f64], yaw: f64) -> f64 {
     let want = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * leg.foot_rotation0;
     now.angle_to(&want)
 }
+
+/// The OP3-layout test robot (tests/data/make_op3_layout.py): hip yaw and roll origins
+/// apart, pitch plane and ankle roll axis offset sideways, a tilted thigh and shin.
+pub const TEST_OP3_LAYOUT: &str = include_str!("../../tests/data/op3_layout.urdf");
+
+pub fn op3_layout() -> BipedModel {
+    BipedModel::from_urdf_str(TEST_OP3_LAYOUT, None).expect("OP3-layout robot loads")
+}

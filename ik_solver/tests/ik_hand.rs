@@ -224,3 +224,106 @@ fn yaw_on_a_five_joint_leg_is_reported_and_ignored() {
     ));
     assert_eq!(sol.angle(R::HipYaw), 0.0);
 }
+
+#[test]
+fn op3_layout_leg_geometry_is_read_as_lines_from_the_urdf() {
+    // tests/data/make_op3_layout.py: yaw joint at (0.005, ±0.035, -0.035); roll joint
+    // (-0.024, 0, -0.028) from it; pitch joint (0.027, ±0.016, -0.004) from the roll joint;
+    // knee (0.002, 0, -0.1); ankle pitch (-0.002, 0, -0.1); ankle roll (-0.022, ∓0.010, 0);
+    // sole 0.11 x 0.066, centre (0.030, ∓0.003, -0.030) from the ankle roll joint, 8 mm thick.
+    let b = op3_layout();
+    for s in Side::BOTH {
+        let leg = b.leg(s);
+        let y = s.sign();
+        // H: below the yaw joint, where the roll axis passes.
+        let h = leg.hip_in_base_m;
+        assert!(
+            (h - nalgebra::Vector3::new(0.005, y * 0.035, -0.063)).norm() < 1e-12,
+            "{h}"
+        );
+        assert!((leg.hip_pitch_forward_m - 0.003).abs() < 1e-12);
+        assert!((leg.hip_roll_to_pitch_m - 0.004).abs() < 1e-12);
+        assert!((leg.ankle_lateral_m - y * 0.006).abs() < 1e-12);
+        assert!((leg.thigh_m - 0.002f64.hypot(0.1)).abs() < 1e-12);
+        assert!((leg.shin_m - 0.002f64.hypot(0.1)).abs() < 1e-12);
+        assert!((leg.thigh_angle0_rad - 0.02f64.atan()).abs() < 1e-12);
+        assert!((leg.shin_angle0_rad + 0.02f64.atan()).abs() < 1e-12);
+        assert!((leg.ankle_to_sole_m - 0.034).abs() < 1e-12);
+        // The sole around the ankle point, 22 mm ahead of the ankle roll joint.
+        let r = leg.sole;
+        assert!(
+            (r.x_min_m + 0.047).abs() < 1e-12 && (r.x_max_m - 0.063).abs() < 1e-12,
+            "{r:?}"
+        );
+        let (inner, outer) = (-0.036, 0.030);
+        let (y_min, y_max) = if y > 0.0 {
+            (inner, outer)
+        } else {
+            (-outer, -inner)
+        };
+        assert!(
+            (r.y_min_m - y_min).abs() < 1e-12 && (r.y_max_m - y_max).abs() < 1e-12,
+            "{r:?}"
+        );
+        assert!(leg.has_yaw());
+    }
+}
+
+#[test]
+fn op3_layout_leg_rolls_to_the_tangent_of_its_offset() {
+    // Target (0.02, ±0.05, -0.19), foot yaw 0.15 rad; e = ±0.006, a_h = 0.003, h_h = 0.004,
+    // thigh (0.002, 0.1) and shin (-0.002, 0.1) (forward, down). ALGORITHM.md's "Leg layouts
+    // of real servo humanoids" in Python gives roll, thigh and shin angles from straight down
+    // (forward positive), and δ = atan(0.02):
+    let d = 0.01999733397315053;
+    let cases = [
+        (
+            Side::Left,
+            0.2090892911518677,
+            0.3914174255595978,
+            -0.13952648894539188,
+        ),
+        (
+            Side::Right,
+            -0.23878761401373866,
+            0.30978111319150786,
+            -0.21345078661980604,
+        ),
+    ];
+    let b = op3_layout();
+    for (side, roll, thigh, shin) in cases {
+        let t = AnkleTarget {
+            ankle_in_hip_m: nalgebra::Vector3::new(0.02, side.sign() * 0.05, -0.19),
+            foot_yaw_rad: 0.15,
+        };
+        let sol = b.solve_leg(side, &t).unwrap();
+        assert!(sol.is_exact(), "{:?}", sol.issues);
+        // Joint angles: hip pitch δ1 - thigh, knee (thigh - shin) - (δ1 - δ2), ankle pitch
+        // shin - δ2; both hip rolls turn about -x, the right leg's pitch joints about -y.
+        let pitch = [d - thigh, (thigh - shin) - 2.0 * d, shin + d];
+        let k = if side == Side::Left { 1.0 } else { -1.0 };
+        assert_angles(
+            &sol.angles_rad,
+            [0.15, -roll, k * pitch[0], k * pitch[1], k * pitch[2], -roll],
+        );
+    }
+}
+
+#[test]
+fn a_target_inside_the_sideways_offset_is_flagged() {
+    // 4 mm from the roll axis, inside e = 6 mm: no roll reaches it.
+    let b = op3_layout();
+    let sol = b
+        .solve_leg(Side::Left, &AnkleTarget::new(0.0, 0.0, -0.004))
+        .unwrap();
+    assert!(sol.angles_rad.iter().all(|a| a.is_finite()));
+    assert!(
+        sol.issues.iter().any(|i| matches!(
+            i,
+            ik_solver::IkIssue::InsideLateralOffset { distance_m, offset_m, .. }
+                if (distance_m - 0.004).abs() < 1e-12 && (offset_m - 0.006).abs() < 1e-12
+        )),
+        "{:?}",
+        sol.issues
+    );
+}

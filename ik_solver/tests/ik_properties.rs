@@ -64,8 +64,15 @@ proptest! {
     }
 
     #[test]
-    fn anywhere_gives_finite_limited_flagged_answers(x in -1.0..1.0f64, y in -1.0..1.0f64, z in -1.0..1.0f64, yaw in -4.0..4.0f64, left in any::<bool>(), six in any::<bool>()) {
-        let b = if six { biped6() } else { default_biped() };
+    fn op3_layout_robot_roundtrip(x in -0.09..0.09f64, y in -0.07..0.07f64, z in -0.24..-0.02f64, yaw in -0.6..0.6f64, left in any::<bool>()) {
+        let b = op3_layout();
+        let side = if left { Side::Left } else { Side::Right };
+        check_roundtrip(&b, side, AnkleTarget { ankle_in_hip_m: Vector3::new(x, y, z), foot_yaw_rad: yaw })?;
+    }
+
+    #[test]
+    fn anywhere_gives_finite_limited_flagged_answers(x in -1.0..1.0f64, y in -1.0..1.0f64, z in -1.0..1.0f64, yaw in -4.0..4.0f64, left in any::<bool>(), robot in 0..3u8) {
+        let b = match robot { 0 => default_biped(), 1 => biped6(), _ => op3_layout() };
         let side = if left { Side::Left } else { Side::Right };
         check_clamped(&b, side, AnkleTarget { ankle_in_hip_m: Vector3::new(x, y, z), foot_yaw_rad: yaw })?;
     }
@@ -73,19 +80,32 @@ proptest! {
 
 #[test]
 fn roundtrip_covers_most_of_the_sampled_workspace() {
-    // Guards the property tests above against passing by rejecting everything.
-    let b = default_biped();
-    let mut exact = 0;
-    let n = 20;
-    for i in 0..n {
-        for k in 0..n {
-            let t = AnkleTarget::new(
-                -0.05 + 0.1 * i as f64 / n as f64,
-                -0.04 + 0.08 * k as f64 / n as f64,
-                -0.15,
-            );
-            exact += usize::from(b.solve_leg(Side::Left, &t).unwrap().is_exact());
+    // Guards the property tests above against passing by rejecting everything: most of a
+    // grid around each robot's stance, a fifth of a leg up, is solved exactly.
+    for (name, b) in [
+        ("default", default_biped()),
+        ("biped6", biped6()),
+        ("op3_layout", op3_layout()),
+    ] {
+        let leg = b.leg(Side::Left);
+        let reach = leg.max_reach_m();
+        let stance = leg.straight_ankle_in_hip_m();
+        let mut exact = 0;
+        let n = 20;
+        for i in 0..n {
+            for k in 0..n {
+                let t = AnkleTarget::new(
+                    stance.x + reach * (-0.25 + 0.5 * i as f64 / n as f64),
+                    stance.y + reach * (-0.2 + 0.4 * k as f64 / n as f64),
+                    stance.z + 0.2 * reach,
+                );
+                exact += usize::from(b.solve_leg(Side::Left, &t).unwrap().is_exact());
+            }
         }
+        assert!(
+            exact > n * n * 9 / 10,
+            "{name}: only {exact} of {} exact",
+            n * n
+        );
     }
-    assert!(exact > n * n * 9 / 10, "only {exact} of {} exact", n * n);
 }

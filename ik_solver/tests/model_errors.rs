@@ -421,10 +421,11 @@ fn both_legs_on_one_side_names_both_hip_roll_joints() {
 
 #[test]
 fn ankle_axes_that_do_not_intersect_are_leg_geometry_errors() {
+    // The roll joint 10 mm above the pitch joint: its axis passes above the pitch axis.
     let e = err(&edit(
         "<joint name=\"l_ankle_roll\"",
         "<origin xyz=\"0 0 0\"",
-        "<origin xyz=\"0.01 0 0\"",
+        "<origin xyz=\"0 0 0.01\"",
     ));
     assert!(
         matches!(
@@ -442,41 +443,25 @@ fn ankle_axes_that_do_not_intersect_are_leg_geometry_errors() {
             "left leg",
             "`l_ankle_roll`",
             "`l_ankle_pitch`",
-            "0.010000 m",
+            "0.010000 m above",
+            "anywhere along its axis",
         ],
     );
 }
 
 #[test]
-fn hip_pitch_sideways_of_hip_roll_is_a_leg_geometry_error() {
-    let e = err(&edit(
-        "<joint name=\"r_hip_pitch\"",
-        "<origin xyz=\"0 0 0\"",
-        "<origin xyz=\"0 -0.01 0\"",
-    ));
-    assert!(
-        matches!(
-            &e,
-            ModelError::LegGeometry {
-                side: Side::Right,
-                ..
-            }
-        ),
-        "{e:?}"
+fn a_hip_yaw_axis_beside_the_roll_axis_is_a_leg_geometry_error() {
+    // The roll joint 7 mm to the right of the yaw axis: the axes miss each other.
+    let urdf = edit_in(
+        TEST_BIPED6,
+        "<joint name=\"LeftLegJ2\"",
+        "<origin xyz=\"0 0 -0.02\"",
+        "<origin xyz=\"0 -0.007 -0.02\"",
     );
-    assert_names(
-        &e,
-        &["right leg", "`r_hip_pitch`", "`r_hip_roll`", "-0.010000"],
-    );
-}
-
-#[test]
-fn knee_out_of_the_sagittal_plane_is_a_leg_geometry_error() {
-    let e = err(&edit(
-        "<joint name=\"l_knee\"",
-        "<origin xyz=\"0 0 -0.09\"",
-        "<origin xyz=\"0 0.005 -0.09\"",
-    ));
+    let e = match BipedModel::from_urdf_str(&urdf, None) {
+        Ok(_) => panic!("accepted"),
+        Err(e) => e,
+    };
     assert!(
         matches!(
             &e,
@@ -487,7 +472,65 @@ fn knee_out_of_the_sagittal_plane_is_a_leg_geometry_error() {
         ),
         "{e:?}"
     );
-    assert_names(&e, &["`l_knee`", "`l_hip_pitch`", "sagittal"]);
+    assert_names(
+        &e,
+        &["`LeftLegJ1`", "`LeftLegJ2`", "0.007000 m", "fore or aft"],
+    );
+}
+
+/// FK(IK(t)) = t with a level sole, for a few targets around the stance of `b`.
+fn assert_solves_around_the_stance(b: &BipedModel) {
+    for side in Side::BOTH {
+        let stance = b.leg(side).straight_ankle_in_hip_m();
+        for d in [
+            nalgebra::Vector3::new(0.02, 0.01, 0.03),
+            nalgebra::Vector3::new(-0.03, -0.02, 0.05),
+        ] {
+            let t = AnkleTarget {
+                ankle_in_hip_m: stance + d,
+                foot_yaw_rad: 0.0,
+            };
+            let sol = b.solve_leg(side, &t).unwrap();
+            assert!(sol.is_exact(), "{:?}", sol.issues);
+            let mut q = vec![0.0; b.robot().dof_count()];
+            b.write_leg(&sol, &mut q);
+            let got = b.ankles_in_hips(&q).unwrap()[side.index()];
+            assert!((got - t.ankle_in_hip_m).norm() < 1e-9, "{got} for {t:?}");
+        }
+    }
+}
+
+#[test]
+fn a_hip_pitch_sideways_of_hip_roll_is_a_sideways_offset_of_the_leg() {
+    // Once refused; the pitch plane 10 mm inward of the roll axis is what servo hips do.
+    let b = BipedModel::from_urdf_str(
+        &edit(
+            "<joint name=\"r_hip_pitch\"",
+            "<origin xyz=\"0 0 0\"",
+            "<origin xyz=\"0 0.01 0\"",
+        ),
+        None,
+    )
+    .unwrap();
+    assert!((b.leg(Side::Right).ankle_lateral_m - 0.01).abs() < 1e-12);
+    assert_eq!(b.leg(Side::Left).ankle_lateral_m, 0.0);
+    assert_solves_around_the_stance(&b);
+}
+
+#[test]
+fn a_knee_beside_the_hip_pitch_moves_the_ankle_point_sideways() {
+    // The knee and everything below it 5 mm outward: the ankle point moves with them.
+    let b = BipedModel::from_urdf_str(
+        &edit(
+            "<joint name=\"l_knee\"",
+            "<origin xyz=\"0 0 -0.09\"",
+            "<origin xyz=\"0 0.005 -0.09\"",
+        ),
+        None,
+    )
+    .unwrap();
+    assert!((b.leg(Side::Left).ankle_lateral_m - 0.005).abs() < 1e-12);
+    assert_solves_around_the_stance(&b);
 }
 
 #[test]

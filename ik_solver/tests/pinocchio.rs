@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
-use common::TEST_BIPED6;
+use common::{TEST_BIPED6, TEST_OP3_LAYOUT};
 
 use std::collections::BTreeMap;
 use std::io::Write;
@@ -432,4 +432,10 @@ fn center_of_mass_of_a_three_link_robot_by_hand() {
         (c - want).norm() < 1e-12,
         "subtree CoM {c:?}, by hand {want:?}"
     );
+}
+
+#[test]
+fn op3_layout_test_robot_fk_and_com_match_pinocchio() {
+    let path = Path::new(WORKSPACE).join("tests/data/op3_layout.urdf");
+    compare_with_pinocchio("op3_layout", TEST_OP3_LAYOUT, &path, 0x94D0_49BB_1331_11EB);
 }
