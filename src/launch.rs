@@ -24,6 +24,10 @@ use nix::unistd::Pid;
 /// The simulator's defaults as a ROS 2 parameter file (config/sim.yaml).
 pub const SIM_PARAMS_YAML: &str = include_str!("../config/sim.yaml");
 
+/// The nodes that find the legs in the URDF and so take a `leg_map_file` parameter
+/// (robot_state_publisher needs only the tree).
+const NODES_WITH_LEGS: [&str; 4] = ["gait_planner", "ik_solver", "joint_bridge", "sim_bridge"];
+
 /// What to launch.
 #[derive(Debug, Clone)]
 pub struct LaunchOptions {
@@ -31,6 +35,8 @@ pub struct LaunchOptions {
     pub backend: String,
     /// Robot URDF, or the built-in robot.
     pub robot: Option<PathBuf>,
+    /// Leg map (the leg joints by name), for every node that finds the legs.
+    pub leg_map: Option<PathBuf>,
     /// ROS 2 parameter file for every node (after the built-in defaults).
     pub params: Option<PathBuf>,
     /// Namespace of every node.
@@ -198,6 +204,14 @@ impl Fleet {
                 "robot_description_file:={}",
                 absolute(r)?.display()
             ));
+        }
+        if let Some(m) = o
+            .leg_map
+            .as_ref()
+            .filter(|_| NODES_WITH_LEGS.contains(&node))
+        {
+            args.push("-p".into());
+            args.push(format!("leg_map_file:={}", absolute(m)?.display()));
         }
         if node == "joint_bridge" {
             args.push("-p".into());

@@ -58,6 +58,10 @@ enum Command {
         /// Robot URDF. Default: the built-in robot.
         #[arg(long, value_name = "URDF")]
         robot: Option<PathBuf>,
+        /// YAML naming the leg joints (as for `biped plan --leg-map`); passed to every node
+        /// as its `leg_map_file` parameter.
+        #[arg(long, value_name = "YAML")]
+        leg_map: Option<PathBuf>,
         /// ROS 2 parameter file for every node (e.g. config/gait.yaml).
         #[arg(long, value_name = "YAML")]
         params: Option<PathBuf>,
@@ -85,6 +89,10 @@ enum Command {
         /// Robot URDF. Default: the built-in robot.
         #[arg(long, value_name = "URDF")]
         robot: Option<PathBuf>,
+        /// YAML naming the leg joints (as for `biped plan --leg-map`); passed to every node
+        /// as its `leg_map_file` parameter.
+        #[arg(long, value_name = "YAML")]
+        leg_map: Option<PathBuf>,
         /// ROS 2 parameter file for every node (gait_planner, sim_bridge, joint_bridge
         /// sections; over the built-in config/sim.yaml).
         #[arg(long, value_name = "YAML")]
@@ -188,18 +196,17 @@ enum Command {
 }
 
 fn load_model(args: &RobotArgs) -> anyhow::Result<BipedModel> {
-    let role_map: Option<LegRoleMap> = match &args.leg_map {
-        Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("cannot read leg map {}", p.display()))?;
-            Some(
-                serde_norway::from_str(&text)
-                    .with_context(|| format!("leg map {}", p.display()))?,
-            )
-        }
-        None => None,
-    };
-    match &args.robot {
+    model_of(args.robot.as_deref(), args.leg_map.as_deref())
+}
+
+/// The robot of a `--robot` URDF (none: the built-in robot) and a `--leg-map` (none: legs
+/// found by their axes).
+pub(crate) fn model_of(
+    robot: Option<&std::path::Path>,
+    leg_map: Option<&std::path::Path>,
+) -> anyhow::Result<BipedModel> {
+    let role_map = leg_map.map(LegRoleMap::from_yaml_file).transpose()?;
+    match robot {
         Some(p) => BipedModel::from_urdf_file(p, role_map.as_ref())
             .with_context(|| format!("robot {}", p.display())),
         None => BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, role_map.as_ref())
@@ -328,6 +335,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Launch {
             backend,
             robot,
+            leg_map,
             params,
             ns,
             log_dir,
@@ -335,6 +343,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         } => launch::launch(&launch::LaunchOptions {
             backend,
             robot,
+            leg_map,
             params,
             namespace: ns,
             log_dir,
@@ -346,6 +355,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             steps,
             twist,
             robot,
+            leg_map,
             params,
             mjcf,
             joint_map,
@@ -361,6 +371,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 steps,
                 velocity: twist,
                 robot,
+                leg_map,
                 params,
                 scene: mjcf.zip(joint_map),
                 out,

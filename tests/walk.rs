@@ -326,3 +326,47 @@ fn a_scene_robot_walks_through_the_fleet_with_its_joint_map() {
     assert!(String::from_utf8_lossy(&r.stderr).contains("--joint-map"));
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// The OP3-layout test robot (hip yaw and roll joints apart, pitch plane and ankle roll axis
+/// offset sideways; tests/data/make_op3_layout.py), its URDF as it stands, walks 10 steps
+/// through the fleet in its own MuJoCo scene and joint map.
+#[test]
+fn the_op3_layout_robot_walks_ten_steps_through_the_fleet_in_its_own_scene() {
+    let out = out_dir("op3-layout");
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let arg = |f: &str| data.join(f).to_str().unwrap().to_owned();
+    let run = walk(
+        86,
+        &out,
+        &[
+            "--steps",
+            "10",
+            "--robot",
+            &arg("op3_layout.urdf"),
+            "--mjcf",
+            &arg("op3_layout_scene.xml"),
+            "--joint-map",
+            &arg("op3_layout_scene_map.yaml"),
+        ],
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let r = report(&out);
+    eprintln!("{}", serde_json::to_string_pretty(&r).unwrap());
+    assert!(r["fell"].is_null());
+    let (d, planned) = (num(&r, "distance_m"), num(&r, "planned_distance_m"));
+    assert!(
+        (d - planned).abs() < 0.1 * planned,
+        "walked {d} m of {planned} m"
+    );
+    let cop = num(&r, "cop_inside_fraction");
+    assert!(cop >= 0.99, "CoP inside the soles {cop}");
+    let slip = num(&r, "max_foot_slip_m");
+    assert!(slip < 0.005, "foot slip {slip} m");
+    let tilt = num(&r, "max_tilt_deg");
+    assert!(tilt < 5.0, "tilt {tilt} deg");
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -13,6 +13,22 @@ pub enum ModelError {
         /// The underlying error.
         source: std::io::Error,
     },
+    /// A leg map file could not be read.
+    #[error("cannot read leg map file {path}: {source}")]
+    LegMapRead {
+        /// The path given.
+        path: String,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// A leg map file is not a leg map (bad YAML, an unknown or missing key).
+    #[error("leg map file {path}: {source}")]
+    LegMapParse {
+        /// The path given.
+        path: String,
+        /// What the YAML reader found.
+        source: serde_norway::Error,
+    },
     /// The text is not a URDF urdf-rs can parse (bad XML, missing attribute, bad number).
     #[error("URDF does not parse: {0}")]
     Parse(String),
@@ -156,4 +172,18 @@ pub enum IkError {
         /// What it must be.
         why: &'static str,
     },
+}
+
+/// The robot of a node's `robot_description_file` and `leg_map_file` parameters could not be
+/// built.
+#[derive(Debug, thiserror::Error)]
+#[error("robot_description_file `{robot_file}`, leg_map_file `{leg_map_file}`")]
+pub struct ParameterFilesError {
+    /// The URDF path given (empty: the built-in robot).
+    pub robot_file: String,
+    /// The leg map path given (empty: none).
+    pub leg_map_file: String,
+    /// Why.
+    #[source]
+    pub source: ModelError,
 }

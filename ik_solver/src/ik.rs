@@ -17,7 +17,7 @@ use std::fmt;
 
 use nalgebra::{Isometry3, Rotation3, Vector3};
 
-use crate::error::{IkError, ModelError};
+use crate::error::{IkError, ModelError, ParameterFilesError};
 use crate::legs::{JointRole, Leg, LegRoleMap, Side, find_legs};
 use crate::model::RobotModel;
 
@@ -222,6 +222,22 @@ impl BipedModel {
         } else {
             Self::from_urdf_file(path, role_map)
         }
+    }
+
+    /// The robot of a node's `robot_description_file` and `leg_map_file` parameters: a URDF
+    /// path (empty: the built-in robot) and a leg map path (empty: legs found by their axes).
+    /// Errors name both parameters and their values.
+    pub fn from_parameter_files(
+        robot_file: &str,
+        leg_map_file: &str,
+    ) -> Result<Self, ParameterFilesError> {
+        LegRoleMap::from_file_or_none(leg_map_file)
+            .and_then(|map| Self::from_file_or_default(robot_file, map.as_ref()))
+            .map_err(|source| ParameterFilesError {
+                robot_file: robot_file.to_string(),
+                leg_map_file: leg_map_file.to_string(),
+                source,
+            })
     }
 
     /// Finds the legs of an already parsed tree.

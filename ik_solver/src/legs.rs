@@ -161,6 +161,36 @@ pub struct LegRoleMap {
     pub right: LegJointNames,
 }
 
+impl LegRoleMap {
+    /// Reads a leg map (YAML with `left:` and `right:`), naming the file in every error.
+    pub fn from_yaml_file(path: impl AsRef<std::path::Path>) -> Result<Self, ModelError> {
+        let path = path.as_ref().display().to_string();
+        let text = std::fs::read_to_string(&path).map_err(|source| ModelError::LegMapRead {
+            path: path.clone(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// A leg map from YAML text.
+    pub fn from_yaml_str(text: &str) -> Result<Self, ModelError> {
+        Self::parse(text, "(text)".into())
+    }
+
+    fn parse(text: &str, path: String) -> Result<Self, ModelError> {
+        serde_norway::from_str(text).map_err(|source| ModelError::LegMapParse { path, source })
+    }
+
+    /// The map of a `leg_map_file` parameter: none for an empty string.
+    pub fn from_file_or_none(path: &str) -> Result<Option<Self>, ModelError> {
+        if path.is_empty() {
+            Ok(None)
+        } else {
+            Self::from_yaml_file(path).map(Some)
+        }
+    }
+}
+
 impl LegJointNames {
     fn by_role(&self) -> [Option<&str>; 6] {
         [

@@ -26,7 +26,7 @@ pub mod odometry;
 mod statics;
 pub mod support;
 
-pub use error::{IkError, ModelError};
+pub use error::{IkError, ModelError, ParameterFilesError};
 pub use frames::{FrameTransform, FrameTree, JointStateError, SkippedJoints};
 pub use ik::{AnkleTarget, BipedModel, IkIssue, LegSolution};
 pub use legs::{Axis, JointRole, Leg, LegJoint, LegJointNames, LegRoleMap, Side, SoleRect};

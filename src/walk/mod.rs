@@ -25,7 +25,6 @@ use biped_msgs::msg::{
     WalkCommand,
 };
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
-use ik_solver::BipedModel;
 use node_runtime::DiscoveryRange;
 use smol::future::FutureExt as _;
 
@@ -42,6 +41,8 @@ pub struct WalkOptions {
     pub velocity: Option<gait_planner::Velocity>,
     /// Robot URDF; `None` for the built-in robot.
     pub robot: Option<PathBuf>,
+    /// Leg map (the leg joints by name); `None` to find the legs by their axes.
+    pub leg_map: Option<PathBuf>,
     /// ROS 2 parameter file for every node (gait and simulator parameters).
     pub params: Option<PathBuf>,
     /// A MuJoCo scene of the robot and its joint map, instead of the URDF-built simulation.
@@ -108,7 +109,7 @@ fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
     };
     let mut map = serde_norway::Mapping::new();
     for (k, v) in node_runtime::node_parameters(&args, "gait_planner", "/")? {
-        if k != "robot_description_file" && k != "use_sim_time" {
+        if !["robot_description_file", "leg_map_file", "use_sim_time"].contains(&k.as_str()) {
             map.insert(serde_norway::Value::String(k), v);
         }
     }
@@ -116,15 +117,17 @@ fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
         .with_context(|| format!("gait_planner parameters in {}", path.display()))
 }
 
+/// The leg map of the walk's `--leg-map`, if any.
+fn model_role_map(o: &WalkOptions) -> anyhow::Result<Option<ik_solver::LegRoleMap>> {
+    Ok(o.leg_map
+        .as_deref()
+        .map(ik_solver::LegRoleMap::from_yaml_file)
+        .transpose()?)
+}
+
 /// Runs the walk.
 pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
-    let model =
-        match &o.robot {
-            Some(p) => BipedModel::from_urdf_file(p, None)
-                .with_context(|| format!("robot {}", p.display()))?,
-            None => BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None)
-                .context("built-in robot")?,
-        };
+    let model = crate::model_of(o.robot.as_deref(), o.leg_map.as_deref())?;
     let params = match &o.params {
         Some(p) => gait_params_of(p)?,
         None => GaitParams::default(),
@@ -162,14 +165,20 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         };
         let map = sim_bridge::JointMap::from_yaml_file(map_file)
             .with_context(|| format!("joint map {}", map_file.display()))?;
-        let sim = sim_bridge::Sim::from_mjcf_file(scene, &map, &urdf, None, &Default::default())
-            .with_context(|| {
-                format!(
-                    "scene {} with joint map {}",
-                    scene.display(),
-                    map_file.display()
-                )
-            })?;
+        let sim = sim_bridge::Sim::from_mjcf_file(
+            scene,
+            &map,
+            &urdf,
+            model_role_map(o)?.as_ref(),
+            &Default::default(),
+        )
+        .with_context(|| {
+            format!(
+                "scene {} with joint map {}",
+                scene.display(),
+                map_file.display()
+            )
+        })?;
         let abs = |p: &PathBuf| {
             std::fs::canonicalize(p).with_context(|| format!("{} not found", p.display()))
         };
@@ -204,6 +213,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     let mut fleet = Fleet::new(LaunchOptions {
         backend: "sim".into(),
         robot: o.robot.clone(),
+        leg_map: o.leg_map.clone(),
         params: o.params.clone(),
         namespace: "/".into(),
         log_dir: o.out.join("logs"),

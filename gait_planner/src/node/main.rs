@@ -48,6 +48,7 @@ use node_runtime::{NodeSetup, RosNode, TickSource};
 use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
+const LEG_MAP_PARAM: &str = "leg_map_file";
 /// Whether the odometry is also sent as the TF edge odom → base link.
 const ODOM_TF_PARAM: &str = "publish_odom_tf";
 
@@ -67,7 +68,7 @@ fn gait_params(
 ) -> anyhow::Result<GaitParams> {
     let mut map = serde_norway::Mapping::new();
     for (k, v) in params {
-        if k != ROBOT_PARAM && k != ODOM_TF_PARAM && k != "use_sim_time" {
+        if ![ROBOT_PARAM, LEG_MAP_PARAM, ODOM_TF_PARAM, "use_sim_time"].contains(&k.as_str()) {
             map.insert(serde_norway::Value::String(k.clone()), v.clone());
         }
     }
@@ -77,6 +78,7 @@ fn gait_params(
 fn declared(
     params: &GaitParams,
     robot_file: &str,
+    leg_map_file: &str,
     odom_tf: bool,
 ) -> anyhow::Result<std::collections::BTreeMap<String, ParameterValue>> {
     let mut out = std::collections::BTreeMap::new();
@@ -89,6 +91,10 @@ fn declared(
     out.insert(
         ROBOT_PARAM.into(),
         ParameterValue::String(robot_file.into()),
+    );
+    out.insert(
+        LEG_MAP_PARAM.into(),
+        ParameterValue::String(leg_map_file.into()),
     );
     out.insert(ODOM_TF_PARAM.into(), ParameterValue::Boolean(odom_tf));
     Ok(out)
@@ -409,9 +415,9 @@ fn run() -> anyhow::Result<()> {
         );
     }
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
+    let leg_map_file = setup.str_param(LEG_MAP_PARAM, "")?;
     let odom_tf = setup.bool_param(ODOM_TF_PARAM, true)?;
-    let model = BipedModel::from_file_or_default(&robot_file, None)
-        .with_context(|| format!("{ROBOT_PARAM} `{robot_file}`"))?;
+    let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     let mut params = gait_params(&setup.params)?;
     let mut planner = GaitPlanner::new(model.clone(), params.clone())?;
     let rate = planner.config().control_rate_hz;
@@ -425,7 +431,7 @@ fn run() -> anyhow::Result<()> {
     let check = {
         let (walking, shared, model) = (walking.clone(), shared.clone(), model.clone());
         move |name: &str, value: &ParameterValue| -> Result<(), String> {
-            if name == ROBOT_PARAM || name == ODOM_TF_PARAM {
+            if name == ROBOT_PARAM || name == LEG_MAP_PARAM || name == ODOM_TF_PARAM {
                 return Err(format!(
                     "{name} is read at start-up; restart the node to change it"
                 ));
@@ -462,7 +468,7 @@ fn run() -> anyhow::Result<()> {
             tx.send(candidate).map_err(|e| e.to_string())
         }
     };
-    let declared = declared(&params, &robot_file, odom_tf)?;
+    let declared = declared(&params, &robot_file, &leg_map_file, odom_tf)?;
     let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
     let stop = node_runtime::shutdown_flag()?;
     let phase_pub = ros.publisher::<GaitPhase>("gait/phase")?;

@@ -14,7 +14,6 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use anyhow::Context as _;
 use biped_msgs::msg::{AnkleTargets, JointState};
 use ik_solver::{AnkleTarget, BipedModel, Side};
 use nalgebra::Vector3;
@@ -22,6 +21,7 @@ use node_runtime::{NodeSetup, RosNode};
 use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
+const LEG_MAP_PARAM: &str = "leg_map_file";
 
 fn main() -> ExitCode {
     match run() {
@@ -70,10 +70,10 @@ fn run() -> anyhow::Result<()> {
             setup.own_args
         );
     }
-    node_runtime::check_known(&setup.params, &[ROBOT_PARAM])?;
+    node_runtime::check_known(&setup.params, &[ROBOT_PARAM, LEG_MAP_PARAM])?;
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
-    let model = BipedModel::from_file_or_default(&robot_file, None)
-        .with_context(|| format!("{ROBOT_PARAM} `{robot_file}`"))?;
+    let leg_map_file = setup.str_param(LEG_MAP_PARAM, "")?;
+    let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     // The leg joints, left then right, hip to foot.
     let (names, dofs): (Vec<String>, Vec<usize>) = Side::BOTH
         .iter()
@@ -86,13 +86,21 @@ fn run() -> anyhow::Result<()> {
         })
         .unzip();
 
-    let declared = BTreeMap::from([(
-        ROBOT_PARAM.to_string(),
-        ParameterValue::String(robot_file.clone()),
-    )]);
+    let declared = BTreeMap::from([
+        (
+            ROBOT_PARAM.to_string(),
+            ParameterValue::String(robot_file.clone()),
+        ),
+        (
+            LEG_MAP_PARAM.to_string(),
+            ParameterValue::String(leg_map_file.clone()),
+        ),
+    ]);
     let check = |name: &str, _: &ParameterValue| -> Result<(), String> {
-        if name == ROBOT_PARAM {
-            Err("robot_description_file is read at start-up; restart the node to change it".into())
+        if name == ROBOT_PARAM || name == LEG_MAP_PARAM {
+            Err(format!(
+                "{name} is read at start-up; restart the node to change it"
+            ))
         } else {
             Ok(())
         }

@@ -32,7 +32,6 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use anyhow::Context as _;
 use biped_msgs::msg::{DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue};
 use ik_solver::BipedModel;
 use joint_bridge::{
@@ -46,8 +45,9 @@ use smol::future::FutureExt as _;
 use crate::serial_setup::{SerialParams, in_range};
 use crate::sim_link::{SimLink, SimLinkHandle};
 
-const PARAMS: [&str; 9] = [
+const PARAMS: [&str; 10] = [
     "robot_description_file",
+    "leg_map_file",
     "backend",
     "rate_hz",
     "watchdog_timeout_s",
@@ -83,6 +83,7 @@ fn run() -> anyhow::Result<()> {
         .collect();
     node_runtime::check_known(&setup.params, &known)?;
     let robot_file = setup.str_param("robot_description_file", "")?;
+    let leg_map_file = setup.str_param("leg_map_file", "")?;
     let backend_name = setup.str_param("backend", "mock")?;
     let rate_hz = setup.f64_param("rate_hz", 100.0)?;
     let timeout_s = setup.f64_param("watchdog_timeout_s", 0.25)?;
@@ -125,8 +126,7 @@ fn run() -> anyhow::Result<()> {
         "s",
     )?;
     let serial = SerialParams::from_setup(&setup)?;
-    let model = BipedModel::from_file_or_default(&robot_file, None)
-        .with_context(|| format!("robot_description_file `{robot_file}`"))?;
+    let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     let mut joints = JointSpec::from_robot(model.robot());
     let sim = backend_name == "sim";
     let serial_board = if backend_name == "serial" {
@@ -146,6 +146,10 @@ fn run() -> anyhow::Result<()> {
         (
             "robot_description_file".to_string(),
             ParameterValue::String(robot_file.clone()),
+        ),
+        (
+            "leg_map_file".to_string(),
+            ParameterValue::String(leg_map_file.clone()),
         ),
         (
             "backend".to_string(),

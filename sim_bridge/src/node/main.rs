@@ -45,6 +45,7 @@ use biped_msgs::msg::{
     Polygon, PolygonStamped, Pose, PoseStamped, StringMsg, TFMessage, Time, Transform,
     TransformStamped,
 };
+use ik_solver::LegRoleMap;
 use node_runtime::{NodeSetup, RosNode};
 use ros2_client::{ParameterValue, Publisher};
 use sim_bridge::{JointMap, Sim, SimConfig};
@@ -59,8 +60,9 @@ const SIM_PARAMS: [&str; 8] = [
     "fall_tilt_deg",
     "fall_height_drop_m",
 ];
-const NODE_PARAMS: [&str; 7] = [
+const NODE_PARAMS: [&str; 8] = [
     "robot_description_file",
+    "leg_map_file",
     "mjcf_file",
     "joint_map_file",
     "lockstep",
@@ -254,6 +256,9 @@ fn run() -> anyhow::Result<()> {
     let known: Vec<&str> = SIM_PARAMS.iter().chain(&NODE_PARAMS).copied().collect();
     node_runtime::check_known(&setup.params, &known)?;
     let robot_file = setup.str_param("robot_description_file", "")?;
+    let leg_map_file = setup.str_param("leg_map_file", "")?;
+    let role_map = LegRoleMap::from_file_or_none(&leg_map_file)
+        .with_context(|| format!("leg_map_file `{leg_map_file}`"))?;
     let lockstep = match setup.params.get("lockstep") {
         None => true,
         Some(v) => v
@@ -281,14 +286,19 @@ fn run() -> anyhow::Result<()> {
     let mjcf_file = setup.str_param("mjcf_file", "")?;
     let map_file = setup.str_param("joint_map_file", "")?;
     let mut sim = match (mjcf_file.is_empty(), map_file.is_empty()) {
-        (true, true) => Sim::from_urdf_str(&urdf, None, &cfg)
-            .with_context(|| format!("robot_description_file `{robot_file}`"))?,
+        (true, true) => Sim::from_urdf_str(&urdf, role_map.as_ref(), &cfg).with_context(|| {
+            format!("robot_description_file `{robot_file}`, leg_map_file `{leg_map_file}`")
+        })?,
         (false, false) => {
             let map = JointMap::from_yaml_file(&map_file)
                 .with_context(|| format!("joint_map_file `{map_file}`"))?;
-            Sim::from_mjcf_file(&mjcf_file, &map, &urdf, None, &cfg).with_context(|| {
-                format!("mjcf_file `{mjcf_file}` with joint_map_file `{map_file}`")
-            })?
+            Sim::from_mjcf_file(&mjcf_file, &map, &urdf, role_map.as_ref(), &cfg).with_context(
+                || {
+                    format!(
+                        "mjcf_file `{mjcf_file}` with joint_map_file `{map_file}`, robot_description_file `{robot_file}`, leg_map_file `{leg_map_file}`"
+                    )
+                },
+            )?
         }
         _ => anyhow::bail!(
             "parameters `mjcf_file` = `{mjcf_file}` and `joint_map_file` = `{map_file}`: give both (a scene and its map to the URDF's names) or neither"
@@ -314,6 +324,10 @@ fn run() -> anyhow::Result<()> {
         (
             "robot_description_file".into(),
             ParameterValue::String(robot_file.clone()),
+        ),
+        (
+            "leg_map_file".into(),
+            ParameterValue::String(leg_map_file.clone()),
         ),
         (
             "mjcf_file".into(),
