@@ -1,12 +1,14 @@
 //! `biped`: the commands users run. `biped walk` walks the robot in MuJoCo with the ROS 2
 //! fleet and measures it; `biped launch` runs the fleet; `biped plan` plans a walk offline;
-//! `biped record` and `biped replay` write and play rosbag2 bags.
+//! `biped check-robot` checks a user's own robot; `biped record` and `biped replay` write and
+//! play rosbag2 bags.
 //!
 //! The top layer (README, "What is where"): it uses the core libraries (ik_solver,
 //! gait_planner, sim_bridge, walk_eval for the walk's measures) and the middleware edge
 //! (node_runtime, biped_msgs); nothing depends on it.
 
 mod bag;
+mod check_robot;
 mod launch;
 mod plan;
 mod plots;
@@ -170,6 +172,29 @@ enum Command {
         /// new publisher takes up to ~4 s, and what is sent before it is lost to them.
         #[arg(long, value_name = "S", default_value_t = 5.0)]
         delay: f64,
+    },
+    /// Check your own robot: read its URDF (and leg map, scene) as the fleet will, print
+    /// what was found (legs, joint roles, axis signs, offsets, soles, mass, CoM, limits), the
+    /// gait defaults derived for it and whether a short plan passes the stability check, and
+    /// draw the legs as an SVG. Exits 1 listing every problem found.
+    CheckRobot {
+        /// The robot's URDF.
+        urdf: PathBuf,
+        /// YAML naming the leg joints, for URDFs whose legs are not found by their axes.
+        #[arg(long, value_name = "YAML")]
+        leg_map: Option<PathBuf>,
+        /// ROS 2 parameter file with a `gait_planner:` section (default: derived from the robot).
+        #[arg(long, value_name = "YAML")]
+        params: Option<PathBuf>,
+        /// A MuJoCo scene of the robot (with --joint-map).
+        #[arg(long, value_name = "XML", requires = "joint_map")]
+        mjcf: Option<PathBuf>,
+        /// The scene's joint map to the URDF's names (with --mjcf).
+        #[arg(long, value_name = "YAML", requires = "mjcf")]
+        joint_map: Option<PathBuf>,
+        /// Where to draw the legs.
+        #[arg(long, value_name = "FILE", default_value = "robot_legs.svg")]
+        svg: PathBuf,
     },
     /// Plan a walk offline; write it as CSV (one row per control tick) and pictures.
     Plan {
@@ -409,6 +434,53 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 );
             }
             Ok(())
+        }
+        Command::CheckRobot {
+            urdf,
+            leg_map,
+            params,
+            mjcf,
+            joint_map,
+            svg,
+        } => {
+            let mut problems = Vec::new();
+            let leg_map = match leg_map
+                .as_deref()
+                .map(LegRoleMap::from_yaml_file)
+                .transpose()
+            {
+                Ok(m) => m,
+                Err(e) => {
+                    problems.push(e.to_string());
+                    None
+                }
+            };
+            let params = match params.as_deref().map(GaitParams::from_ros_yaml_file) {
+                None => GaitParams::default(),
+                Some(Ok(p)) => p,
+                Some(Err(e)) => {
+                    problems.push(e.to_string());
+                    GaitParams::default()
+                }
+            };
+            let req = check_robot::CheckRequest {
+                urdf,
+                leg_map,
+                scene: mjcf.zip(joint_map),
+                params,
+                svg,
+            };
+            let mut outcome = check_robot::check(&req)?;
+            problems.append(&mut outcome.problems);
+            print!("{}", outcome.report);
+            if problems.is_empty() {
+                println!("no problems found");
+                return Ok(());
+            }
+            for p in &problems {
+                eprintln!("problem: {p}");
+            }
+            anyhow::bail!("{} problem(s) with {}", problems.len(), req.urdf.display())
         }
         Command::Plan {
             steps,

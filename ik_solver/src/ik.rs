@@ -18,7 +18,7 @@ use std::fmt;
 use nalgebra::{Isometry3, Rotation3, Vector3};
 
 use crate::error::{IkError, ModelError, ParameterFilesError};
-use crate::legs::{JointRole, Leg, LegRoleMap, Side, find_legs};
+use crate::legs::{JointRole, Leg, LegRoleMap, Side, find_legs, find_legs_all};
 use crate::model::RobotModel;
 
 /// Overshoot of the reach (m) taken as rounding of a straight leg, not reported.
@@ -222,6 +222,20 @@ impl BipedModel {
         } else {
             Self::from_urdf_file(path, role_map)
         }
+    }
+
+    /// Builds the model from a URDF document, or lists every problem found in it (never an
+    /// empty list): each link and joint, the tree, then both legs, for a user fixing their
+    /// robot's description (`biped check-robot`).
+    pub fn from_urdf_str_all(
+        urdf: &str,
+        role_map: Option<&LegRoleMap>,
+    ) -> Result<Self, Vec<ModelError>> {
+        let parsed =
+            urdf_rs::read_from_string(urdf).map_err(|e| vec![ModelError::Parse(e.to_string())])?;
+        let robot = RobotModel::from_urdf_all(&parsed)?;
+        let legs = find_legs_all(&robot, role_map)?;
+        Ok(Self { robot, legs })
     }
 
     /// The robot of a node's `robot_description_file` and `leg_map_file` parameters: a URDF

@@ -403,26 +403,41 @@ const PATTERN: [JointRole; 6] = JointRole::ALL;
 /// Joint indices of one leg by [`JointRole`].
 type LegIds = [Option<usize>; 6];
 
-/// Finds the two legs and reads their geometry.
+/// Finds the two legs and reads their geometry; the first problem found is the error.
 pub(crate) fn find_legs(
     robot: &RobotModel,
     role_map: Option<&LegRoleMap>,
 ) -> Result<[Leg; 2], ModelError> {
+    find_legs_all(robot, role_map).map_err(|mut problems| problems.swap_remove(0))
+}
+
+/// Finds the two legs and reads their geometry, or lists every problem found (never an
+/// empty list): both legs are read even when the first is wrong.
+pub(crate) fn find_legs_all(
+    robot: &RobotModel,
+    role_map: Option<&LegRoleMap>,
+) -> Result<[Leg; 2], Vec<ModelError>> {
     let zero = ZeroPose::new(robot);
     let found: Vec<(Side, LegIds)> = match role_map {
-        Some(map) => vec![
-            (Side::Left, mapped(robot, &zero, &map.left)?),
-            (Side::Right, mapped(robot, &zero, &map.right)?),
-        ],
-        None => detect(robot, &zero)?,
+        Some(map) => match (
+            mapped(robot, &zero, &map.left),
+            mapped(robot, &zero, &map.right),
+        ) {
+            (Ok(l), Ok(r)) => vec![(Side::Left, l), (Side::Right, r)],
+            (l, r) => return Err(l.err().into_iter().chain(r.err()).collect()),
+        },
+        None => detect(robot, &zero).map_err(|e| vec![e])?,
     };
     let mut legs = found
         .into_iter()
         .map(|(side, joints)| leg_geometry(robot, &zero, side, joints));
     let (Some(a), Some(b)) = (legs.next(), legs.next()) else {
-        return Err(ModelError::NotABiped("fewer than two legs".into()));
+        return Err(vec![ModelError::NotABiped("fewer than two legs".into())]);
     };
-    let (left, right) = (a?, b?);
+    let (left, right) = match (a, b) {
+        (Ok(l), Ok(r)) => (l, r),
+        (l, r) => return Err(l.err().into_iter().chain(r.err()).flatten().collect()),
+    };
     // A role map can swap the sides (or name one leg twice): the left hip must be left of the right one.
     if left.hip_in_base_m.y <= right.hip_in_base_m.y {
         let hip = |l: &Leg| {
@@ -430,13 +445,13 @@ pub(crate) fn find_legs(
                 .map(|j| j.name.clone())
                 .unwrap_or_default()
         };
-        return Err(ModelError::RoleMap(format!(
+        return Err(vec![ModelError::RoleMap(format!(
             "the left leg's hip roll joint `{}` is at y = {:.4} m, not left of the right leg's `{}` at y = {:.4} m (left and right swapped, or one leg named twice?)",
             hip(&left),
             left.hip_in_base_m.y,
             hip(&right),
             right.hip_in_base_m.y
-        )));
+        ))]);
     }
     Ok([left, right])
 }
@@ -624,8 +639,11 @@ fn leg_geometry(
     zero: &ZeroPose,
     side: Side,
     ids: LegIds,
-) -> Result<Leg, ModelError> {
+) -> Result<Leg, Vec<ModelError>> {
     let bad = |why: String| ModelError::LegGeometry { side, why };
+    // Every problem of the leg, each one independent of the others; the ones after which
+    // nothing more can be measured return at once.
+    let mut problems = Vec::new();
     let name = |j: usize| robot.joints()[j].name.clone();
     let mut joints: [Option<LegJoint>; 6] = Default::default();
     for role in JointRole::ALL {
@@ -635,7 +653,8 @@ fn leg_geometry(
         let joint = &robot.joints()[j];
         let (_, sign) = axis_of(&zero.axis(robot, j)).unwrap_or((Axis::X, 1.0));
         let (Some(dof), Some(limits)) = (joint.dof, joint.limits) else {
-            return Err(bad(format!("{role} joint `{}` is not movable", joint.name)));
+            problems.push(bad(format!("{role} joint `{}` is not movable", joint.name)));
+            continue;
         };
         joints[role as usize] = Some(LegJoint {
             name: joint.name.clone(),
@@ -645,7 +664,7 @@ fn leg_geometry(
             limits,
         });
     }
-    let id = |r: JointRole| ids[r as usize].ok_or_else(|| bad(format!("no {r} joint")));
+    let id = |r: JointRole| ids[r as usize].ok_or_else(|| vec![bad(format!("no {r} joint"))]);
     let (roll, pitch, knee, ap, ar) = (
         id(JointRole::HipRoll)?,
         id(JointRole::HipPitch)?,
@@ -669,7 +688,7 @@ fn leg_geometry(
             let p_yaw = zero.origin(robot, yaw);
             let dy = p_yaw.y - p_roll.y;
             if dy.abs() > TOL_M {
-                return Err(bad(format!(
+                problems.push(bad(format!(
                     "the hip yaw axis of joint `{}` passes {:.6} m {} of the hip roll axis of joint `{}`; the closed form needs them to cross (the yaw joint may sit anywhere above the roll axis, fore or aft of the roll joint, but not beside it)",
                     name(yaw),
                     dy.abs(),
@@ -684,7 +703,7 @@ fn leg_geometry(
     // The ankle pitch axis (along y) crosses the ankle roll axis (along x) where z agrees.
     let dz = p_ar.z - p_ap.z;
     if dz.abs() > TOL_M {
-        return Err(bad(format!(
+        problems.push(bad(format!(
             "the ankle roll axis of joint `{}` passes {:.6} m {} the ankle pitch axis of joint `{}`; the closed form needs the ankle axes to cross (the roll joint may sit anywhere along its axis, fore or aft, and sideways of the pitch joint, but not above or below it)",
             name(ar),
             dz.abs(),
@@ -698,14 +717,14 @@ fn leg_geometry(
     let (l1, l2) = (thigh.xz().norm(), shin.xz().norm());
     for (what, l, j) in [("thigh", l1, knee), ("shin", l2, ap)] {
         if l < 1e-3 {
-            return Err(bad(format!(
+            problems.push(bad(format!(
                 "{what} length {l:.6} m (to joint `{}`) is too short to be a leg",
                 name(j)
             )));
         }
     }
     if p_ap.z >= p_pitch.z {
-        return Err(bad(format!(
+        problems.push(bad(format!(
             "ankle pitch joint `{}` is not below hip pitch joint `{}` at zero angles",
             name(ap),
             name(pitch)
@@ -741,17 +760,19 @@ fn leg_geometry(
         );
     }
     let Some((bottom, corners, sole_link)) = sole else {
-        return Err(bad(format!(
+        problems.push(bad(format!(
             "foot link `{}` (after ankle roll joint `{}`) has no box collision to serve as the sole",
             robot.links()[foot_link].name,
             name(ar)
         )));
+        return Err(problems);
     };
     let on_floor: Vec<&Vector3<f64>> = corners.iter().filter(|c| c.z - bottom < TOL_M).collect();
     if on_floor.len() != 4 {
-        return Err(bad(format!(
+        problems.push(bad(format!(
             "the sole box of link `{sole_link}` is not level at zero joint angles"
         )));
+        return Err(problems);
     }
     let xs = on_floor.iter().map(|c| c.x - p_ankle.x);
     let ys = on_floor.iter().map(|c| c.y - p_ankle.y);
@@ -770,18 +791,21 @@ fn leg_geometry(
         d[1] * d[2]
     };
     if (area - box_area).abs() > 1e-6 * area.max(1e-9) + 1e-9 {
-        return Err(bad(format!(
+        problems.push(bad(format!(
             "the sole box of link `{sole_link}` is turned about z; the sole must be aligned with the base x and y axes"
         )));
     }
     let ankle_to_sole = p_ankle.z - bottom;
     if ankle_to_sole <= 0.0 {
-        return Err(bad(format!(
+        problems.push(bad(format!(
             "the sole of link `{sole_link}` is not below the ankle pitch joint `{}`",
             name(ap)
         )));
     }
 
+    if !problems.is_empty() {
+        return Err(problems);
+    }
     let angle = |v: Vector3<f64>| v.x.atan2(-v.z);
     let ankle_in_roll_joint_m =
         (robot.joint_frame(&zero.poses, ar).inverse() * Point3::from(p_ankle)).coords;

@@ -210,49 +210,50 @@ impl RobotModel {
         Self::from_urdf_str(&text)
     }
 
-    /// Builds the tree from a parsed URDF.
+    /// Builds the tree from a parsed URDF; the first problem found is the error.
     pub fn from_urdf(robot: &urdf_rs::Robot) -> Result<Self, ModelError> {
+        Self::from_urdf_all(robot).map_err(|mut problems| problems.swap_remove(0))
+    }
+
+    /// Builds the tree from a parsed URDF, or lists every problem found (never an empty
+    /// list): each link and joint is checked on its own, then the tree. A bad link or joint
+    /// stands in the tree as a massless link or a fixed joint, so one mistake is reported once
+    /// and not again as a broken tree.
+    pub fn from_urdf_all(robot: &urdf_rs::Robot) -> Result<Self, Vec<ModelError>> {
         if robot.links.is_empty() {
-            return Err(ModelError::NoLinks);
+            return Err(vec![ModelError::NoLinks]);
         }
+        let mut problems = Vec::new();
         let mut links = Vec::with_capacity(robot.links.len());
         let mut link_index = HashMap::new();
         for l in &robot.links {
             if link_index.insert(l.name.clone(), links.len()).is_some() {
-                return Err(ModelError::DuplicateLink {
+                problems.push(ModelError::DuplicateLink {
                     link: l.name.clone(),
                 });
+                continue;
             }
-            let mut collision_boxes = Vec::new();
-            for (k, c) in l.collision.iter().enumerate() {
-                if let urdf_rs::Geometry::Box { size } = &c.geometry {
-                    let origin = pose(
-                        || format!("link `{}` collision {k} origin", l.name),
-                        &c.origin,
-                    )?;
-                    let size_m = finite3(
-                        || format!("link `{}` collision {k} box size", l.name),
-                        &size.0,
-                    )?;
-                    collision_boxes.push(CollisionBox { origin, size_m });
+            let link = Self::link(l).unwrap_or_else(|e| {
+                problems.push(e);
+                Link {
+                    name: l.name.clone(),
+                    inertial: None,
+                    collision_boxes: Vec::new(),
+                    parent_joint: None,
+                    child_joints: Vec::new(),
                 }
-            }
-            links.push(Link {
-                name: l.name.clone(),
-                inertial: inertial(l)?,
-                collision_boxes,
-                parent_joint: None,
-                child_joints: Vec::new(),
             });
+            links.push(link);
         }
 
         let mut joints = Vec::with_capacity(robot.joints.len());
         let mut joint_index = HashMap::new();
         for j in &robot.joints {
-            if joint_index.insert(j.name.clone(), joints.len()).is_some() {
-                return Err(ModelError::DuplicateJoint {
+            if joint_index.contains_key(&j.name) {
+                problems.push(ModelError::DuplicateJoint {
                     joint: j.name.clone(),
                 });
+                continue;
             }
             let find = |role: &'static str, name: &str| {
                 link_index
@@ -264,89 +265,154 @@ impl RobotModel {
                         link: name.to_owned(),
                     })
             };
-            let parent = find("parent", &j.parent.link)?;
-            let child = find("child", &j.child.link)?;
-            let kind = match j.joint_type {
-                urdf_rs::JointType::Fixed => JointKind::Fixed,
-                urdf_rs::JointType::Revolute => JointKind::Revolute,
-                urdf_rs::JointType::Continuous => JointKind::Continuous,
-                urdf_rs::JointType::Prismatic => JointKind::Prismatic,
-                ref other => {
-                    return Err(ModelError::UnsupportedJoint {
-                        joint: j.name.clone(),
-                        kind: format!("{other:?}").to_lowercase(),
-                    });
+            let (parent, child) =
+                match (find("parent", &j.parent.link), find("child", &j.child.link)) {
+                    (Ok(p), Ok(c)) => (p, c),
+                    (p, c) => {
+                        problems.extend(p.err());
+                        problems.extend(c.err());
+                        continue;
+                    }
+                };
+            joint_index.insert(j.name.clone(), joints.len());
+            let joint = Self::joint(j, parent, child).unwrap_or_else(|e| {
+                problems.push(e);
+                Joint {
+                    name: j.name.clone(),
+                    kind: JointKind::Fixed,
+                    parent,
+                    child,
+                    origin: Isometry3::identity(),
+                    axis: Vector3::x_axis(),
+                    limits: None,
+                    dof: None,
                 }
-            };
-            let origin = pose(|| format!("joint `{}` origin", j.name), &j.origin)?;
-            let axis_v = finite3(|| format!("joint `{}` axis", j.name), &j.axis.xyz.0)?;
-            let axis = if kind == JointKind::Fixed {
-                Unit::new_normalize(Vector3::x())
-            } else {
-                Unit::try_new(axis_v, 1e-9).ok_or_else(|| ModelError::ZeroAxis {
-                    joint: j.name.clone(),
-                })?
-            };
-            let limits = match kind {
-                JointKind::Fixed => None,
-                JointKind::Continuous => Some(JointLimits {
-                    lower: f64::NEG_INFINITY,
-                    upper: f64::INFINITY,
-                    velocity: j.limit.velocity,
-                    effort: j.limit.effort,
-                }),
-                JointKind::Revolute | JointKind::Prismatic => {
-                    let l = &j.limit;
-                    let bad = |why: String| ModelError::BadLimits {
-                        joint: j.name.clone(),
-                        why,
-                    };
-                    if l.lower.is_nan() || l.upper.is_nan() || l.lower >= l.upper {
-                        return Err(bad(format!(
-                            "lower {} is not below upper {}",
-                            l.lower, l.upper
-                        )));
-                    }
-                    if !(l.velocity.is_finite() && l.velocity > 0.0) {
-                        return Err(bad(format!(
-                            "velocity limit {} is not a positive number",
-                            l.velocity
-                        )));
-                    }
-                    if l.effort.is_nan() || l.effort < 0.0 {
-                        return Err(bad(format!(
-                            "effort limit {} is negative or not a number",
-                            l.effort
-                        )));
-                    }
-                    Some(JointLimits {
-                        lower: l.lower,
-                        upper: l.upper,
-                        velocity: l.velocity,
-                        effort: l.effort,
-                    })
-                }
-            };
-            joints.push(Joint {
-                name: j.name.clone(),
-                kind,
-                parent,
-                child,
-                origin,
-                axis,
-                limits,
-                dof: None,
             });
+            joints.push(joint);
         }
+        Self::tree(robot, links, joints, link_index, joint_index, problems)
+    }
 
+    /// One link, checked.
+    fn link(l: &urdf_rs::Link) -> Result<Link, ModelError> {
+        let mut collision_boxes = Vec::new();
+        for (k, c) in l.collision.iter().enumerate() {
+            if let urdf_rs::Geometry::Box { size } = &c.geometry {
+                let origin = pose(
+                    || format!("link `{}` collision {k} origin", l.name),
+                    &c.origin,
+                )?;
+                let size_m = finite3(
+                    || format!("link `{}` collision {k} box size", l.name),
+                    &size.0,
+                )?;
+                collision_boxes.push(CollisionBox { origin, size_m });
+            }
+        }
+        Ok(Link {
+            name: l.name.clone(),
+            inertial: inertial(l)?,
+            collision_boxes,
+            parent_joint: None,
+            child_joints: Vec::new(),
+        })
+    }
+
+    /// One joint between known links, checked.
+    fn joint(j: &urdf_rs::Joint, parent: usize, child: usize) -> Result<Joint, ModelError> {
+        let kind = match j.joint_type {
+            urdf_rs::JointType::Fixed => JointKind::Fixed,
+            urdf_rs::JointType::Revolute => JointKind::Revolute,
+            urdf_rs::JointType::Continuous => JointKind::Continuous,
+            urdf_rs::JointType::Prismatic => JointKind::Prismatic,
+            ref other => {
+                return Err(ModelError::UnsupportedJoint {
+                    joint: j.name.clone(),
+                    kind: format!("{other:?}").to_lowercase(),
+                });
+            }
+        };
+        let origin = pose(|| format!("joint `{}` origin", j.name), &j.origin)?;
+        let axis_v = finite3(|| format!("joint `{}` axis", j.name), &j.axis.xyz.0)?;
+        let axis = if kind == JointKind::Fixed {
+            Unit::new_normalize(Vector3::x())
+        } else {
+            Unit::try_new(axis_v, 1e-9).ok_or_else(|| ModelError::ZeroAxis {
+                joint: j.name.clone(),
+            })?
+        };
+        let limits = match kind {
+            JointKind::Fixed => None,
+            JointKind::Continuous => Some(JointLimits {
+                lower: f64::NEG_INFINITY,
+                upper: f64::INFINITY,
+                velocity: j.limit.velocity,
+                effort: j.limit.effort,
+            }),
+            JointKind::Revolute | JointKind::Prismatic => {
+                let l = &j.limit;
+                let bad = |why: String| ModelError::BadLimits {
+                    joint: j.name.clone(),
+                    why,
+                };
+                if l.lower.is_nan() || l.upper.is_nan() || l.lower >= l.upper {
+                    return Err(bad(format!(
+                        "lower {} is not below upper {}",
+                        l.lower, l.upper
+                    )));
+                }
+                if !(l.velocity.is_finite() && l.velocity > 0.0) {
+                    return Err(bad(format!(
+                        "velocity limit {} is not a positive number",
+                        l.velocity
+                    )));
+                }
+                if l.effort.is_nan() || l.effort < 0.0 {
+                    return Err(bad(format!(
+                        "effort limit {} is negative or not a number",
+                        l.effort
+                    )));
+                }
+                Some(JointLimits {
+                    lower: l.lower,
+                    upper: l.upper,
+                    velocity: l.velocity,
+                    effort: l.effort,
+                })
+            }
+        };
+        Ok(Joint {
+            name: j.name.clone(),
+            kind,
+            parent,
+            child,
+            origin,
+            axis,
+            limits,
+            dof: None,
+        })
+    }
+
+    /// Links the checked links and joints into one tree, or lists every problem.
+    fn tree(
+        robot: &urdf_rs::Robot,
+        mut links: Vec<Link>,
+        mut joints: Vec<Joint>,
+        link_index: HashMap<String, usize>,
+        joint_index: HashMap<String, usize>,
+        mut problems: Vec<ModelError>,
+    ) -> Result<Self, Vec<ModelError>> {
+        let mut two_parents = false;
         for (ji, j) in joints.iter().enumerate() {
             let child = &mut links[j.child];
             if let Some(prev) = child.parent_joint {
-                return Err(ModelError::TwoParents {
+                problems.push(ModelError::TwoParents {
                     link: child.name.clone(),
                     first: joints[prev].name.clone(),
                     second: j.name.clone(),
                 });
+                two_parents = true;
+                continue;
             }
             child.parent_joint = Some(ji);
             links[j.parent].child_joints.push(ji);
@@ -355,9 +421,13 @@ impl RobotModel {
             .filter(|&i| links[i].parent_joint.is_none())
             .collect();
         if roots.len() != 1 {
-            return Err(ModelError::NotATree {
+            problems.push(ModelError::NotATree {
                 roots: roots.iter().map(|&i| links[i].name.clone()).collect(),
             });
+            return Err(problems);
+        }
+        if two_parents {
+            return Err(problems);
         }
         let root = roots[0];
 
@@ -375,12 +445,15 @@ impl RobotModel {
             let stray = (0..joints.len())
                 .find(|i| !reached.contains(i))
                 .map(|i| joints[i].name.clone());
-            return Err(ModelError::NotATree {
+            problems.push(ModelError::NotATree {
                 roots: stray
                     .into_iter()
                     .map(|j| format!("(cycle through joint `{j}`)"))
                     .collect(),
             });
+        }
+        if !problems.is_empty() {
+            return Err(problems);
         }
 
         let mut dof_joints = Vec::new();
