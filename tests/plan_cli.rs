@@ -5,9 +5,8 @@
 mod common;
 
 use std::collections::HashMap;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 use ik_solver::{BipedModel, Side};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
@@ -210,27 +209,12 @@ fn the_op3_layout_plan_agrees_with_pinocchio() {
             )
         })
         .collect();
-    let mut child = Command::new(common::python())
-        .arg(root().join("tests/python/pin_reference.py"))
-        .arg(&urdf)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(format!("[{}]", requests.join(",")).as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = common::run_python(
+        "pin_reference.py",
+        &[urdf.as_os_str()],
+        format!("[{}]", requests.join(",")).as_bytes(),
     );
-    let answers: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let answers: Vec<serde_json::Value> = serde_json::from_slice(&out).unwrap();
     assert_eq!(answers.len(), rows.len());
     let mut worst = 0.0f64;
     for (row, ans) in rows.iter().zip(&answers) {

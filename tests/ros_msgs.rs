@@ -25,11 +25,11 @@
 //! The venv is required: without it the Python-backed tests fail and say how to make it.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::path::Path;
 
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{
@@ -342,57 +342,10 @@ fn encode_sample(registry: &[Entry], e: &Entry, value: &Json, at: &str) -> Resul
 
 // ---------------------------------------------------------------- the reference
 
-/// The venv's interpreter: `BIPED_PYTHON` if set, else `<workspace>/.venv/bin/biped-python`
-/// (the wrapper scripts/setup-python-env writes; it sets up the ROS environment).
-fn python() -> PathBuf {
-    match std::env::var_os("BIPED_PYTHON") {
-        Some(p) => PathBuf::from(p),
-        None => {
-            let p = Path::new(WORKSPACE).join(".venv/bin/biped-python");
-            assert!(
-                p.exists(),
-                "{} does not exist: run scripts/setup-python-env (it builds the venv with rclpy, \
-                 the ROS 2 message packages and our biped_msgs that these tests compare against), \
-                 or set BIPED_PYTHON to the interpreter it prints",
-                p.display()
-            );
-            p
-        }
-    }
-}
-
 /// Runs msg_check.py once on a request and returns its answer.
 fn msg_check(request: &Json) -> Json {
-    let py = python();
-    let script = Path::new(WORKSPACE).join("tests/python/msg_check.py");
-    let mut child = Command::new(&py)
-        .arg(&script)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| {
-            panic!(
-                "cannot run {}: {e}; run scripts/setup-python-env",
-                py.display()
-            )
-        });
-    child
-        .stdin
-        .take()
-        .expect("stdin is piped")
-        .write_all(request.to_string().as_bytes())
-        .expect("msg_check.py reads its request");
-    let out = child.wait_with_output().expect("msg_check.py runs");
-    assert!(
-        out.status.success(),
-        "{} {} failed ({}): {}\n(if rclpy or biped_msgs is missing, run scripts/setup-python-env)",
-        py.display(),
-        script.display(),
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout);
+    let out = common::run_python("msg_check.py", &[], request.to_string().as_bytes());
+    let text = String::from_utf8_lossy(&out);
     serde_json::from_str(&text)
         .unwrap_or_else(|e| panic!("msg_check.py answer does not parse: {e}\n{text}"))
 }

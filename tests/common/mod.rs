@@ -27,6 +27,43 @@ pub fn python() -> PathBuf {
     p
 }
 
+/// Runs `tests/python/SCRIPT ARGS` in the venv with `input` on its standard input; it must
+/// succeed (its standard error in the panic otherwise). Returns its standard output.
+pub fn run_python(script: &str, args: &[&std::ffi::OsStr], input: &[u8]) -> Vec<u8> {
+    use std::io::Write as _;
+    let py = python();
+    let path = root().join("tests/python").join(script);
+    let mut child = Command::new(&py)
+        .arg(&path)
+        .args(args)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| {
+            panic!(
+                "cannot run {}: {e}; run scripts/setup-python-env",
+                py.display()
+            )
+        });
+    child
+        .stdin
+        .take()
+        .expect("stdin is piped")
+        .write_all(input)
+        .unwrap_or_else(|e| panic!("{script} does not read its input: {e}"));
+    let out = child.wait_with_output().expect("the script runs");
+    assert!(
+        out.status.success(),
+        "{} {} failed ({}): {}\n(if rclpy or a message package is missing, run scripts/setup-python-env)",
+        py.display(),
+        path.display(),
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
 /// The folder of `biped` and the node binaries, checked to hold them all.
 pub fn bin_dir() -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_BIN_EXE_biped"))
