@@ -6,6 +6,7 @@ use std::fmt;
 use crate::backend::{Backend, BackendError, Lifecycle, Reading};
 use crate::compensation::SagCompensation;
 use crate::limits::JointSpec;
+use crate::motion::{Limiter, MotionLimit};
 
 /// What to do when commands stop coming.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -41,6 +42,13 @@ pub struct BridgeConfig {
     /// When the backend fails (or cannot start), configure and activate it again after
     /// these delays; `None`: stay in [`Lifecycle::Error`].
     pub reconnect: Option<Backoff>,
+    /// Speed limit of joints the URDF leaves unlimited (continuous, or velocity 0) (rad/s).
+    pub default_velocity_rad_s: f64,
+    /// Acceleration limit of every joint (rad/s²): no output ever changes speed faster.
+    pub acceleration_rad_s2: f64,
+    /// Longest time one tick may move the joints for (s): after a stall of the control
+    /// loop, the joints move as far as in this time, not as far as the stall lasted.
+    pub max_tick_s: f64,
 }
 
 impl Default for BridgeConfig {
@@ -50,6 +58,9 @@ impl Default for BridgeConfig {
             on_timeout: TimeoutAction::Hold,
             start_ramp_s: 0.0,
             reconnect: None,
+            default_velocity_rad_s: 2.0,
+            acceleration_rad_s2: 100.0,
+            max_tick_s: 0.05,
         }
     }
 }
@@ -190,7 +201,10 @@ impl fmt::Display for Event {
     }
 }
 
-/// The bridge: a backend with limits, velocity limiting and a watchdog around it.
+/// The bridge: a backend with limits, velocity and acceleration limiting and a watchdog
+/// around it. Every position written goes through one limiter ([`crate::motion`]), from the
+/// measured pose where the backend measures: a start, a resume after a hold or limp, a new
+/// command source, the sag offset, a stalled loop all become a move within the limits.
 ///
 /// ```
 /// use joint_bridge::{BridgeConfig, JointBridge, JointSpec, MockBackend};
@@ -199,9 +213,11 @@ impl fmt::Display for Event {
 /// bridge.start().unwrap();
 /// bridge.command(0.0, &["knee".to_string()], &[0.5]);
 /// bridge.tick(0.0);
-/// let (state, _) = bridge.tick(0.1);
-/// // 1 rad/s for 0.1 s: the knee is on its way, 0.1 rad from where it was.
-/// assert!((state.unwrap().positions_rad[0] - 0.1).abs() < 1e-12);
+/// let (state, _) = bridge.tick(0.01);
+/// // From rest, 100 rad/s² for 10 ms: 1 rad/s (the speed limit) at once, 0.01 rad on.
+/// assert!((state.unwrap().positions_rad[0] - 0.01).abs() < 1e-12);
+/// let (state, _) = bridge.tick(0.02);
+/// assert!((state.unwrap().positions_rad[0] - 0.02).abs() < 1e-12);
 /// ```
 #[derive(Debug)]
 pub struct JointBridge<B: Backend> {
@@ -211,8 +227,14 @@ pub struct JointBridge<B: Backend> {
     config: BridgeConfig,
     /// Where the joints should go (clamped, finite).
     target: Vec<f64>,
-    /// What was last written (the target approached at the velocity limits).
+    /// The output without the sag offset: what was written, less the offset of its goal.
     output: Vec<f64>,
+    /// The one limiter every written position goes through (velocity, acceleration).
+    limiter: Limiter,
+    /// Its bounds per joint.
+    motion: Vec<MotionLimit>,
+    /// The last pose the backend measured, if it measures (to resume from limp).
+    measured: Option<Vec<f64>>,
     state: Lifecycle,
     last_command_s: Option<f64>,
     last_tick_s: Option<f64>,
@@ -236,12 +258,26 @@ impl<B: Backend> JointBridge<B> {
             .map(|(i, j)| (j.name.clone(), i))
             .collect();
         let zeros: Vec<f64> = joints.iter().map(|j| j.clamp(0.0)).collect();
+        let motion = joints
+            .iter()
+            .map(|j| MotionLimit {
+                velocity_rad_s: if j.velocity_rad_s.is_finite() && j.velocity_rad_s > 0.0 {
+                    j.velocity_rad_s
+                } else {
+                    config.default_velocity_rad_s
+                },
+                acceleration_rad_s2: config.acceleration_rad_s2,
+            })
+            .collect();
         Self {
             backend,
             index,
             config,
             target: zeros.clone(),
             written: zeros.clone(),
+            limiter: Limiter::at_rest(&zeros),
+            motion,
+            measured: None,
             output: zeros,
             joints,
             state: Lifecycle::Unconfigured,
@@ -263,13 +299,13 @@ impl<B: Backend> JointBridge<B> {
         self
     }
 
-    /// The positions last written to the backend (rad): the velocity-limited output plus
-    /// the sag compensation, within the limits.
+    /// The positions last written to the backend (rad): the goal plus its sag offset,
+    /// through the velocity and acceleration limits, within the joint limits.
     pub fn written_rad(&self) -> &[f64] {
         &self.written
     }
 
-    /// The velocity-limited output the bridge is holding (rad), before compensation.
+    /// The output the bridge is holding (rad), without the sag offset.
     pub fn output_rad(&self) -> &[f64] {
         &self.output
     }
@@ -295,7 +331,8 @@ impl<B: Backend> JointBridge<B> {
             && measured.len() == self.joints.len()
             && measured.iter().all(|v| v.is_finite())
         {
-            self.output = measured.clone();
+            self.rest_at(&measured);
+            self.measured = Some(measured.clone());
             if self.state == Lifecycle::Unconfigured || self.last_command_s.is_none() {
                 // No command yet: hold the measured pose until one comes.
                 self.target = measured.clone();
@@ -381,6 +418,47 @@ impl<B: Backend> JointBridge<B> {
         self.ramp.is_some()
     }
 
+    /// The joints are at `pose` (measured), at rest: what is written and output restart there.
+    fn rest_at(&mut self, pose: &[f64]) {
+        self.output.copy_from_slice(pose);
+        self.written.copy_from_slice(pose);
+        self.limiter.reset(pose);
+    }
+
+    /// Torque on after it was off: start from the measured pose (ramping to the commands
+    /// like a start), else from the output (a backend that cannot measure), at rest.
+    fn torque_on_from_measured(&mut self) -> Result<(), BackendError> {
+        if let Some(m) = self.measured.clone() {
+            self.rest_at(&m);
+            if self.config.start_ramp_s > 0.0 {
+                self.ramp = Some(Ramp {
+                    from: m,
+                    start_s: None,
+                });
+            }
+        } else {
+            let at = self.limiter.position_rad().to_vec();
+            self.limiter.reset(&at);
+        }
+        self.backend.activate()?;
+        self.state = Lifecycle::Active;
+        Ok(())
+    }
+
+    /// The target becomes where the joints come to rest braking now (less the sag offset
+    /// the written pose carries): a hold never turns a joint back.
+    fn hold_where_heading(&mut self) {
+        let stop = self.limiter.stopping_point_rad(&self.motion);
+        for ((t, (s, w)), (o, spec)) in self
+            .target
+            .iter_mut()
+            .zip(stop.iter().zip(&self.written))
+            .zip(self.output.iter().zip(&self.joints))
+        {
+            *t = spec.clamp(s - (w - o));
+        }
+    }
+
     /// Takes a command received at `t_s`: joint names and positions (rad). Joints not named
     /// keep their targets.
     pub fn command(&mut self, t_s: f64, names: &[String], positions_rad: &[f64]) -> Vec<Event> {
@@ -425,12 +503,11 @@ impl<B: Backend> JointBridge<B> {
             if self.tripped && self.state != Lifecycle::Error {
                 self.tripped = false;
                 if self.state == Lifecycle::Inactive {
-                    // Back from limp: torque on again; the output starts where it was left.
-                    if let Err(e) = self.backend.activate() {
+                    // Back from limp: torque on again, from where the joints are now.
+                    if let Err(e) = self.torque_on_from_measured() {
                         events.push(Event::BackendFailed(e));
                         return events;
                     }
-                    self.state = Lifecycle::Active;
                 }
                 events.push(Event::Resumed);
             }
@@ -438,10 +515,14 @@ impl<B: Backend> JointBridge<B> {
         events
     }
 
-    /// One control period at `t_s`: watchdog, velocity-limited write, read back.
+    /// One control period at `t_s`: watchdog, limited write, read back. A tick moves the
+    /// joints for at most [`BridgeConfig::max_tick_s`], however long since the last one.
     pub fn tick(&mut self, t_s: f64) -> (Result<Reading, BackendError>, Vec<Event>) {
         let mut events = Vec::new();
-        let dt = self.last_tick_s.map_or(0.0, |l| (t_s - l).max(0.0));
+        let dt = self
+            .last_tick_s
+            .map_or(0.0, |l| (t_s - l).max(0.0))
+            .min(self.config.max_tick_s);
         self.last_tick_s = Some(t_s);
         if self.state == Lifecycle::Error {
             self.retry(t_s, &mut events);
@@ -453,8 +534,8 @@ impl<B: Backend> JointBridge<B> {
             let silence = t_s - last;
             if silence > self.config.watchdog_timeout_s {
                 self.tripped = true;
-                // Hold where the joints are now, not where they were heading.
-                self.target.copy_from_slice(&self.output);
+                // Hold where the joints come to rest braking now, not where they were heading.
+                self.hold_where_heading();
                 events.push(Event::WatchdogTripped {
                     silence_s: silence,
                     action: self.config.on_timeout,
@@ -485,24 +566,33 @@ impl<B: Backend> JointBridge<B> {
                     self.ramp = None;
                 }
             }
-            for ((out, &target), spec) in self.output.iter_mut().zip(&goal).zip(&self.joints) {
-                // No speed limit: straight to the target (inf × 0 would be NaN).
-                let step = if spec.velocity_rad_s.is_finite() {
-                    spec.velocity_rad_s * dt
-                } else {
-                    f64::INFINITY
-                };
-                *out += (target - *out).clamp(-step, step);
+            // The sag offset belongs to the goal, and goes through the limiter with it.
+            let mut aim = goal.clone();
+            if let Some(c) = &mut self.compensation
+                && let Err(why) = c.add_to(&goal, &mut aim)
+            {
+                aim.copy_from_slice(&goal);
+                events.push(Event::CompensationFailed(why));
             }
-            self.written.copy_from_slice(&self.output);
-            if let Some(c) = &mut self.compensation {
-                if let Err(why) = c.add_to(&self.output, &mut self.written) {
-                    self.written.copy_from_slice(&self.output);
-                    events.push(Event::CompensationFailed(why));
-                }
-                for (w, spec) in self.written.iter_mut().zip(&self.joints) {
-                    *w = spec.clamp(*w);
-                }
+            for (a, spec) in aim.iter_mut().zip(&self.joints) {
+                *a = spec.clamp(*a);
+            }
+            self.limiter.step(&aim, &self.motion, dt);
+            for ((w, &x), spec) in self
+                .written
+                .iter_mut()
+                .zip(self.limiter.position_rad())
+                .zip(&self.joints)
+            {
+                *w = spec.clamp(x);
+            }
+            for ((o, &w), (&a, &g)) in self
+                .output
+                .iter_mut()
+                .zip(&self.written)
+                .zip(aim.iter().zip(&goal))
+            {
+                *o = w - (a - g);
             }
             if let Err(e) = self.backend.write(t_s, &self.written) {
                 let _ = self.backend.deactivate();
@@ -520,6 +610,16 @@ impl<B: Backend> JointBridge<B> {
             }
         }
         let reading = self.backend.read(t_s);
+        if let Ok(r) = &reading
+            && r.measured
+            && r.positions_rad.len() == self.joints.len()
+            && r.positions_rad.iter().all(|v| v.is_finite())
+        {
+            match &mut self.measured {
+                Some(m) => m.copy_from_slice(&r.positions_rad),
+                None => self.measured = Some(r.positions_rad.clone()),
+            }
+        }
         events.extend(
             self.backend
                 .take_notices()

@@ -5,9 +5,10 @@
 //! refuses non-finite values and unknown joints by name, clamps to the URDF limits and feeds
 //! the watchdog. [`JointBridge::tick`] runs at the bridge's rate with the time passed in: it
 //! trips the watchdog when commands stop (hold the pose, or go limp), moves the output toward
-//! the target no faster than each joint's velocity limit, optionally aims each servo beyond
-//! it by the sag of the pose's static torque ([`SagCompensation`]), writes it to the
-//! [`Backend`] and
+//! the target within each joint's velocity and acceleration limits ([`motion`], the one
+//! limiter every written position goes through, sag offset included), optionally aiming
+//! each servo beyond it by the sag of the pose's static torque ([`SagCompensation`]),
+//! writes it to the [`Backend`] and
 //! reads the joint states back. Everything the bridge notices comes back as [`Event`]s for the
 //! node to log.
 //!
@@ -18,6 +19,7 @@ mod bridge;
 mod compensation;
 mod limits;
 mod mock;
+pub mod motion;
 pub mod serial;
 
 pub use backend::{Backend, BackendError, DiagnosticLevel, Diagnostics, Lifecycle, Reading};

@@ -6,6 +6,9 @@
 //! boundaries fall on exactly representable instants (0.5, 0.75, 1.0).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+use common::{names, spec};
+
 use std::sync::{Arc, Mutex};
 
 use joint_bridge::{
@@ -16,20 +19,6 @@ use joint_bridge::{
 // ---------------------------------------------------------------------------------------------
 // Helpers
 // ---------------------------------------------------------------------------------------------
-
-/// A hand-made joint.
-fn spec(name: &str, lower: f64, upper: f64, velocity: f64) -> JointSpec {
-    JointSpec {
-        name: name.into(),
-        lower_rad: lower,
-        upper_rad: upper,
-        velocity_rad_s: velocity,
-    }
-}
-
-fn names(n: &[&str]) -> Vec<String> {
-    n.iter().map(|s| s.to_string()).collect()
-}
 
 /// Tick `i` of a 100 Hz clock (s).
 fn t(i: u32) -> f64 {
@@ -50,12 +39,23 @@ fn positions(r: Result<Reading, BackendError>) -> Vec<f64> {
     r.expect("tick reads the backend").positions_rad
 }
 
+/// Velocity limits only (no acceleration limit, ticks of any length): the tests of
+/// clamping, refusing and the watchdog count steps of velocity × dt. The acceleration limit
+/// and the bounded tick have their own tests below.
+fn velocity_only() -> BridgeConfig {
+    BridgeConfig {
+        acceleration_rad_s2: f64::INFINITY,
+        max_tick_s: 1e6,
+        ..BridgeConfig::default()
+    }
+}
+
 /// A watchdog timeout that never trips within these tests.
 fn patient() -> BridgeConfig {
     BridgeConfig {
         watchdog_timeout_s: 1e6,
         on_timeout: TimeoutAction::Hold,
-        ..BridgeConfig::default()
+        ..velocity_only()
     }
 }
 
@@ -263,11 +263,7 @@ fn mock_activate_before_configure_is_refused() {
 fn start_activates_and_stop_turns_the_torque_off() {
     let mut mock = MockBackend::default();
     mock.keep_writes = 100;
-    let mut bridge = JointBridge::new(
-        mock,
-        vec![spec("a", -1.0, 1.0, 1.0)],
-        BridgeConfig::default(),
-    );
+    let mut bridge = JointBridge::new(mock, vec![spec("a", -1.0, 1.0, 1.0)], velocity_only());
     assert_eq!(bridge.state(), Lifecycle::Unconfigured);
     assert_eq!(bridge.backend().state(), Lifecycle::Unconfigured);
 
@@ -579,7 +575,7 @@ fn a_length_mismatch_is_malformed_and_nothing_is_applied() {
 fn commands_with_nothing_usable_do_not_feed_the_watchdog() {
     // Timeout 0.25 s, hold. The one good command is at t = 0.5.
     let joints = vec![spec("a", -1.0, 1.0, 1.0)];
-    let mut bridge = JointBridge::new(MockBackend::default(), joints, BridgeConfig::default());
+    let mut bridge = JointBridge::new(MockBackend::default(), joints, velocity_only());
     bridge.start().unwrap();
     bridge.command(0.5, &names(&["a"]), &[0.1]);
     let _ = bridge.tick(0.5);
@@ -615,7 +611,7 @@ fn a_step_is_approached_at_the_velocity_limit_without_overshoot() {
     let joints = vec![spec("a", -1.5, 1.5, 2.0), spec("b", -1.5, 1.5, 1.0)];
     let mut mock = MockBackend::default();
     mock.keep_writes = 1000;
-    let mut bridge = JointBridge::new(mock, joints, BridgeConfig::default());
+    let mut bridge = JointBridge::new(mock, joints, velocity_only());
     bridge.start().unwrap();
     let ab = names(&["a", "b"]);
     bridge.command(0.0, &ab, &[1.0, -0.5]);
@@ -670,7 +666,7 @@ fn the_step_size_comes_from_the_tick_times() {
     let mut bridge = JointBridge::new(
         MockBackend::default(),
         vec![spec("a", -1.5, 1.5, 2.0)],
-        BridgeConfig::default(),
+        velocity_only(),
     );
     bridge.start().unwrap();
     bridge.command(0.0, &names(&["a"]), &[1.0]);
@@ -691,9 +687,10 @@ fn the_step_size_comes_from_the_tick_times() {
 }
 
 #[test]
-fn a_joint_without_a_speed_limit_does_not_panic_and_goes_straight_to_its_target() {
+fn a_joint_without_a_speed_limit_moves_at_the_default_speed_not_straight_to_its_target() {
     // A continuous joint with no <limit>: JointSpec::from_robot gives it ±inf position limits
-    // and an infinite speed limit (the URDF's velocity 0 means "none").
+    // and an infinite speed limit (the URDF's velocity 0 means "none"). Once it went straight
+    // to its target (a snap); now it moves at `default_velocity_rad_s`.
     const URDF: &str = r#"<?xml version="1.0"?>
 <robot name="wheel">
   <link name="body"/>
@@ -716,16 +713,16 @@ fn a_joint_without_a_speed_limit_does_not_panic_and_goes_straight_to_its_target(
         )]
     );
 
-    let mut bridge = JointBridge::new(MockBackend::default(), joints, BridgeConfig::default());
+    let mut bridge = JointBridge::new(MockBackend::default(), joints, velocity_only());
     bridge.start().unwrap();
     // No limits: 10 rad is not clamped.
     assert!(bridge.command(0.0, &names(&["spin"]), &[10.0]).is_empty());
     // The first tick has dt = 0: inf × 0 is NaN, and f64::clamp(NaN, NaN) panics.
     let (r, _) = bridge.tick(0.0);
     assert!(positions(r)[0].is_finite());
-    // With time passed and no speed limit: at the target.
+    // 10 ms at 2 rad/s (the default speed), not at the target.
     let (r, _) = bridge.tick(0.01);
-    assert_eq!(positions(r), vec![10.0]);
+    assert!(close(positions(r)[0], 0.02), "{:?}", bridge.written_rad());
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -741,14 +738,13 @@ fn watchdog_hold_trips_on_the_first_tick_past_the_timeout_and_keeps_writing_the_
             on_timeout: TimeoutAction::Hold,
             start_ramp_s: 0.0,
             reconnect: None,
+            default_velocity_rad_s: 2.0,
+            acceleration_rad_s2: 100.0,
+            max_tick_s: 0.05,
         }
     );
     let (rec, log) = Recorder::new();
-    let mut bridge = JointBridge::new(
-        rec,
-        vec![spec("a", -1.0, 1.0, 2.0)],
-        BridgeConfig::default(),
-    );
+    let mut bridge = JointBridge::new(rec, vec![spec("a", -1.0, 1.0, 2.0)], velocity_only());
     bridge.start().unwrap();
 
     // Commands at 100 Hz from 0 to 0.5 s (51 of them), to 0.3 rad: at 2 rad/s reached at
@@ -812,7 +808,7 @@ fn watchdog_hold_freezes_where_the_output_is_not_at_the_far_target() {
     let mut bridge = JointBridge::new(
         MockBackend::default(),
         vec![spec("a", -1.5, 1.5, 1.0)],
-        BridgeConfig::default(),
+        velocity_only(),
     );
     bridge.start().unwrap();
     bridge.command(0.0, &names(&["a"]), &[1.0]);
@@ -848,7 +844,7 @@ fn watchdog_limp_turns_the_torque_off_and_a_command_resumes_from_the_output() {
     let config = BridgeConfig {
         watchdog_timeout_s: 0.25,
         on_timeout: TimeoutAction::Limp,
-        ..BridgeConfig::default()
+        ..velocity_only()
     };
     let (rec, log) = Recorder::new();
     let mut bridge = JointBridge::new(rec, vec![spec("a", -1.5, 1.5, 1.0)], config);
@@ -952,11 +948,7 @@ fn a_failing_write_while_holding_stays_in_error_on_the_next_command() {
     // report Resumed nor turn the torque back on: the backend failed.
     let (mut rec, log) = Recorder::new();
     rec.fail_write = Some(81); // ticks 0..=80: the 81st write is tick 0.80
-    let mut bridge = JointBridge::new(
-        rec,
-        vec![spec("a", -1.0, 1.0, 2.0)],
-        BridgeConfig::default(),
-    );
+    let mut bridge = JointBridge::new(rec, vec![spec("a", -1.0, 1.0, 2.0)], velocity_only());
     bridge.start().unwrap();
     for i in 0..=50 {
         bridge.command(t(i), &names(&["a"]), &[0.3]);
@@ -977,11 +969,7 @@ fn a_command_after_stop_does_not_turn_the_torque_back_on_even_after_the_watchdog
     // Hold trips at 0.76; the node then shuts down (stop, torque off). A late command at
     // 0.80 must not re-activate the backend.
     let (rec, log) = Recorder::new();
-    let mut bridge = JointBridge::new(
-        rec,
-        vec![spec("a", -1.0, 1.0, 2.0)],
-        BridgeConfig::default(),
-    );
+    let mut bridge = JointBridge::new(rec, vec![spec("a", -1.0, 1.0, 2.0)], velocity_only());
     bridge.start().unwrap();
     for i in 0..=50 {
         bridge.command(t(i), &names(&["a"]), &[0.3]);

@@ -96,6 +96,7 @@ fn bridge(p: Protocol, port: &Path) -> JointBridge<SerialBackend> {
                 first_s: 0.05,
                 max_s: 0.2,
             }),
+            ..BridgeConfig::default()
         },
     )
 }

@@ -9,7 +9,9 @@
 //! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `backend`
 //! (`mock`, `sim` or `serial`), `rate_hz` (100), `watchdog_timeout_s` (0.25),
 //! `watchdog_action` (`hold` or `limp`), `start_ramp_s` (the move from the measured pose to
-//! the first command, 2 s), `sag_compensation_kp` (the servos' stiffness in N·m/rad for the
+//! the first command, 2 s), `acceleration_limit_rad_s2` (every joint, 100),
+//! `default_velocity_rad_s` (joints the URDF leaves without a speed limit, 2), `max_tick_s`
+//! (the longest time one tick moves the joints for, 0.05 s), `sag_compensation_kp` (the servos' stiffness in N·m/rad for the
 //! sag compensation; 0 = off), `sim_wait_s` (how long the `sim` backend waits for the
 //! simulator, 10 s), `lockstep_wait_s`, the serial board's `protocol`, `port`, `baud`,
 //! `calibration_file`, `reply_timeout_s`, `retry_first_s`, `retry_max_s`, and the read-only
@@ -45,7 +47,7 @@ use smol::future::FutureExt as _;
 use crate::serial_setup::{SerialParams, in_range};
 use crate::sim_link::{SimLink, SimLinkHandle};
 
-const PARAMS: [&str; 10] = [
+const PARAMS: [&str; 13] = [
     "robot_description_file",
     "leg_map_file",
     "backend",
@@ -56,6 +58,9 @@ const PARAMS: [&str; 10] = [
     "sim_wait_s",
     "lockstep_wait_s",
     "start_ramp_s",
+    "acceleration_limit_rad_s2",
+    "default_velocity_rad_s",
+    "max_tick_s",
 ];
 
 fn main() -> ExitCode {
@@ -125,6 +130,27 @@ fn run() -> anyhow::Result<()> {
         60.0,
         "s",
     )?;
+    let acceleration_rad_s2 = in_range(
+        "acceleration_limit_rad_s2",
+        setup.f64_param("acceleration_limit_rad_s2", 100.0)?,
+        0.1,
+        1e5,
+        "rad/s²",
+    )?;
+    let default_velocity_rad_s = in_range(
+        "default_velocity_rad_s",
+        setup.f64_param("default_velocity_rad_s", 2.0)?,
+        0.01,
+        100.0,
+        "rad/s",
+    )?;
+    let max_tick_s = in_range(
+        "max_tick_s",
+        setup.f64_param("max_tick_s", 0.05)?,
+        0.001,
+        1.0,
+        "s",
+    )?;
     let serial = SerialParams::from_setup(&setup)?;
     let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     let mut joints = JointSpec::from_robot(model.robot());
@@ -181,6 +207,15 @@ fn run() -> anyhow::Result<()> {
             "start_ramp_s".to_string(),
             ParameterValue::Double(start_ramp_s),
         ),
+        (
+            "acceleration_limit_rad_s2".to_string(),
+            ParameterValue::Double(acceleration_rad_s2),
+        ),
+        (
+            "default_velocity_rad_s".to_string(),
+            ParameterValue::Double(default_velocity_rad_s),
+        ),
+        ("max_tick_s".to_string(), ParameterValue::Double(max_tick_s)),
     ]);
     declared.extend(serial.declared());
     let mut ros = RosNode::start(setup, &declared, Some(node_runtime::read_at_startup()))?;
@@ -225,6 +260,9 @@ fn run() -> anyhow::Result<()> {
             on_timeout: action,
             start_ramp_s,
             reconnect,
+            default_velocity_rad_s,
+            acceleration_rad_s2,
+            max_tick_s,
         },
     );
     if kp > 0.0 {
