@@ -8,6 +8,40 @@ use crate::compensation::SagCompensation;
 use crate::limits::JointSpec;
 use crate::motion::{Limiter, MotionLimit};
 
+/// How many unknown joint names the bridge reports (each once) before it stops reporting:
+/// a sender making up a new name every message must not grow the bridge without end.
+pub const MAX_UNKNOWN_REPORTED: usize = 256;
+
+/// Why the bridge ignores commands, on an operator's request (the node's `~/estop`,
+/// `~/set_torque` and lifecycle services). Several may hold at once; the first in this order
+/// is the one reported.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Operator {
+    /// Emergency stop: holding where the joints came to rest; commands ignored until released.
+    Estop,
+    /// Torque off on request; commands ignored until the torque is turned on again.
+    TorqueOff,
+    /// The managed node is inactive: holding, commands ignored until activated.
+    Inactive,
+}
+
+/// Why a torque request was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TorqueError {
+    /// The backend is not running.
+    #[error("the backend is {state:?}: start it (or let it reconnect) first")]
+    NotRunning {
+        /// Its state.
+        state: Lifecycle,
+    },
+    /// An emergency stop is on.
+    #[error("an emergency stop is on: release it first")]
+    Estop,
+    /// The backend failed the request.
+    #[error(transparent)]
+    Backend(#[from] BackendError),
+}
+
 /// What to do when commands stop coming.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TimeoutAction {
@@ -144,6 +178,8 @@ pub enum Event {
     Reconnected,
     /// Something the backend noticed (e.g. a servo's error bits, by name).
     BackendNotice(String),
+    /// Commands are ignored while an operator holds the bridge (said once per hold).
+    Ignored(Operator),
 }
 
 impl fmt::Display for Event {
@@ -197,6 +233,18 @@ impl fmt::Display for Event {
                 "backend configured and active again; ramping from the measured pose"
             ),
             Event::BackendNotice(n) => write!(f, "{n}"),
+            Event::Ignored(Operator::Estop) => write!(
+                f,
+                "joint commands ignored: emergency stop (release it with ~/reset)"
+            ),
+            Event::Ignored(Operator::TorqueOff) => write!(
+                f,
+                "joint commands ignored: torque off on request (~/set_torque true to resume)"
+            ),
+            Event::Ignored(Operator::Inactive) => write!(
+                f,
+                "joint commands ignored: the node is inactive (activate it to resume)"
+            ),
         }
     }
 }
@@ -239,6 +287,9 @@ pub struct JointBridge<B: Backend> {
     last_command_s: Option<f64>,
     last_tick_s: Option<f64>,
     tripped: bool,
+    /// Why commands are ignored (empty: they are taken); whether it was said since.
+    holds: std::collections::BTreeSet<Operator>,
+    said_ignored: bool,
     reported_unknown: HashSet<String>,
     compensation: Option<SagCompensation>,
     /// What was last sent: the output, compensated and clamped.
@@ -284,6 +335,8 @@ impl<B: Backend> JointBridge<B> {
             last_command_s: None,
             last_tick_s: None,
             tripped: false,
+            holds: Default::default(),
+            said_ignored: false,
             reported_unknown: HashSet::new(),
             compensation: None,
             ramp: None,
@@ -333,8 +386,12 @@ impl<B: Backend> JointBridge<B> {
         {
             self.rest_at(&measured);
             self.measured = Some(measured.clone());
-            if self.state == Lifecycle::Unconfigured || self.last_command_s.is_none() {
-                // No command yet: hold the measured pose until one comes.
+            if self.state == Lifecycle::Unconfigured
+                || self.last_command_s.is_none()
+                || !self.holds.is_empty()
+            {
+                // No command yet, or an operator holds: hold the measured pose (never
+                // resume towards a command given before the hold).
                 self.target = measured.clone();
             }
             if self.config.start_ramp_s > 0.0 {
@@ -345,6 +402,11 @@ impl<B: Backend> JointBridge<B> {
             }
         }
         self.state = Lifecycle::Inactive;
+        if self.holds.contains(&Operator::TorqueOff) {
+            // The operator turned the torque off: a start or a reconnection leaves it off
+            // (configured, measuring) until `set_torque(true)`.
+            return Ok(());
+        }
         self.backend.activate()?;
         self.state = Lifecycle::Active;
         Ok(())
@@ -459,10 +521,93 @@ impl<B: Backend> JointBridge<B> {
         }
     }
 
+    /// Why commands are ignored, if they are: the first operator hold ([`Operator`] order).
+    pub fn operator(&self) -> Option<Operator> {
+        self.holds.first().copied()
+    }
+
+    /// Holds where the joints come to rest and ignores commands until `why` is released
+    /// (an emergency stop, the node going inactive). The torque stays as it is.
+    pub fn hold(&mut self, why: Operator) {
+        if self.state == Lifecycle::Active {
+            self.hold_where_heading();
+        }
+        self.ramp = None;
+        self.holds.insert(why);
+        self.said_ignored = false;
+    }
+
+    /// Releases `why`; once nothing holds, commands are taken again, approached from where
+    /// the joints hold through the limiter. Returns false if `why` was not holding.
+    pub fn release(&mut self, why: Operator) -> bool {
+        if !self.holds.remove(&why) {
+            return false;
+        }
+        self.said_ignored = false;
+        if self.holds.is_empty() {
+            // The watchdog starts afresh: silence during the hold is no timeout.
+            self.last_command_s = None;
+            self.tripped = false;
+        }
+        true
+    }
+
+    /// Emergency stop: [`Self::hold`] until [`Self::release_estop`].
+    pub fn estop(&mut self) {
+        self.hold(Operator::Estop);
+    }
+
+    /// Releases an emergency stop. Returns false if none was on.
+    pub fn release_estop(&mut self) -> bool {
+        self.release(Operator::Estop)
+    }
+
+    /// Torque off (commands ignored until it is on again) or on: from the measured pose,
+    /// holding it, commands taken again. Refused in [`Lifecycle::Unconfigured`] and
+    /// [`Lifecycle::Error`] (start or reconnect first) and while an emergency stop is on.
+    pub fn set_torque(&mut self, on: bool) -> Result<(), TorqueError> {
+        match (on, self.state) {
+            (_, Lifecycle::Unconfigured | Lifecycle::Error) => {
+                return Err(TorqueError::NotRunning { state: self.state });
+            }
+            (true, _) if self.holds.contains(&Operator::Estop) => return Err(TorqueError::Estop),
+            (false, _) => {
+                self.backend.deactivate()?;
+                self.state = Lifecycle::Inactive;
+                self.holds.insert(Operator::TorqueOff);
+                self.said_ignored = false;
+                self.ramp = None;
+            }
+            (true, Lifecycle::Active) => {
+                self.release(Operator::TorqueOff);
+            }
+            (true, _) => {
+                self.torque_on_from_measured()?;
+                // Hold the pose found; the next command moves on from it.
+                self.target.copy_from_slice(self.limiter.position_rad());
+                for (t, spec) in self.target.iter_mut().zip(&self.joints) {
+                    *t = spec.clamp(*t);
+                }
+                self.ramp = None;
+                self.release(Operator::TorqueOff);
+                self.last_command_s = None;
+                self.tripped = false;
+            }
+        }
+        Ok(())
+    }
+
     /// Takes a command received at `t_s`: joint names and positions (rad). Joints not named
-    /// keep their targets.
+    /// keep their targets. Ignored while an operator holds the bridge ([`Operator`]).
     pub fn command(&mut self, t_s: f64, names: &[String], positions_rad: &[f64]) -> Vec<Event> {
         let mut events = Vec::new();
+        if let Some(why) = self.operator() {
+            if !self.said_ignored {
+                self.said_ignored = true;
+                events.push(Event::Ignored(why));
+            }
+            return events;
+        }
         if names.len() != positions_rad.len() {
             events.push(Event::Malformed {
                 names: names.len(),
@@ -473,7 +618,10 @@ impl<B: Backend> JointBridge<B> {
         let mut any = false;
         for (name, &value) in names.iter().zip(positions_rad) {
             let Some(&i) = self.index.get(name) else {
-                if self.reported_unknown.insert(name.clone()) {
+                // Remembered to report each once, up to a bound; beyond it, no more reports.
+                if self.reported_unknown.len() < MAX_UNKNOWN_REPORTED
+                    && self.reported_unknown.insert(name.clone())
+                {
                     events.push(Event::UnknownJoint {
                         joint: name.clone(),
                     });
@@ -529,6 +677,7 @@ impl<B: Backend> JointBridge<B> {
         }
         if self.state == Lifecycle::Active
             && !self.tripped
+            && self.holds.is_empty()
             && let Some(last) = self.last_command_s
         {
             let silence = t_s - last;

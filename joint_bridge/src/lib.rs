@@ -18,12 +18,16 @@ mod backend;
 mod bridge;
 mod compensation;
 mod limits;
+pub mod managed;
 mod mock;
 pub mod motion;
 pub mod serial;
 
 pub use backend::{Backend, BackendError, DiagnosticLevel, Diagnostics, Lifecycle, Reading};
-pub use bridge::{Backoff, BridgeConfig, Event, JointBridge, TimeoutAction};
+pub use bridge::{
+    Backoff, BridgeConfig, Event, JointBridge, MAX_UNKNOWN_REPORTED, Operator, TimeoutAction,
+    TorqueError,
+};
 pub use compensation::{CompensationError, SagCompensation};
 pub use limits::JointSpec;
 pub use mock::MockBackend;

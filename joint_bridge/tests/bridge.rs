@@ -423,6 +423,30 @@ fn unknown_joints_are_reported_once_per_name_and_known_ones_still_applied() {
 }
 
 #[test]
+fn unknown_names_are_remembered_up_to_a_bound() {
+    // A sender making up a new name every message: reported up to the bound, then no more
+    // (and nothing more is kept); known joints are still applied.
+    let mut bridge = JointBridge::new(MockBackend::default(), robot_joints(), patient());
+    bridge.start().unwrap();
+    let mut reported = 0;
+    for k in 0..joint_bridge::MAX_UNKNOWN_REPORTED + 50 {
+        let ev = bridge.command(0.0, &[format!("ghost_{k}"), "l_knee".into()], &[0.0, 0.5]);
+        reported += ev
+            .iter()
+            .filter(|e| matches!(e, Event::UnknownJoint { .. }))
+            .count();
+    }
+    assert_eq!(reported, joint_bridge::MAX_UNKNOWN_REPORTED);
+    let _ = bridge.tick(0.0);
+    let _ = bridge.tick(10.0);
+    let knee = robot_joints()
+        .iter()
+        .position(|j| j.name == "l_knee")
+        .unwrap();
+    assert!(close(bridge.written_rad()[knee], 0.5));
+}
+
+#[test]
 fn non_finite_values_are_refused_by_name_and_the_joint_keeps_its_target() {
     let joints = vec![
         spec("a", -1.0, 1.0, 10.0),

@@ -2,7 +2,9 @@
 //! acceleration limiter, from the measured pose where the backend measures. Each test here
 //! is a path that snapped before the limiter: resume after limp, a new command source after
 //! a hold, the sag offset at start, a stalled control loop, a joint without a speed limit.
-//! Then a property over random command streams: no step ever exceeds the limits.
+//! Then the operator's holds (emergency stop, torque off, the managed node's transitions),
+//! and a property over random command streams with all of these: no step ever exceeds the
+//! limits.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
@@ -10,8 +12,8 @@ use common::{names, spec};
 
 use ik_solver::{BipedModel, DEFAULT_URDF};
 use joint_bridge::{
-    Backend, BackendError, BridgeConfig, JointBridge, JointSpec, Reading, SagCompensation,
-    TimeoutAction,
+    Backend, BackendError, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, Operator,
+    Reading, SagCompensation, TimeoutAction, TorqueError,
 };
 use proptest::prelude::*;
 
@@ -268,6 +270,200 @@ fn a_joint_without_a_speed_limit_moves_at_the_default_speed() {
     );
 }
 
+#[test]
+fn an_emergency_stop_brakes_to_a_hold_ignores_commands_until_released_then_moves_smoothly() {
+    let mut b = JointBridge::new(
+        Servos::new(vec![0.0], vec![0.0]),
+        vec![spec("a", -1.5, 1.5, 1.0)],
+        config(),
+    );
+    b.start().unwrap();
+    let mut t = 0.0;
+    let mut run = |b: &mut JointBridge<Servos>, goal: f64, ticks: u32| {
+        let mut events = Vec::new();
+        for _ in 0..ticks {
+            t += 0.01;
+            events.extend(b.command(t, &names(&["a"]), &[goal]));
+            events.extend(b.tick(t).1);
+        }
+        events
+    };
+    run(&mut b, 1.0, 40);
+    let moving = b.backend().writes.len();
+    b.estop();
+    assert_eq!(b.operator(), Some(Operator::Estop));
+    let events = run(&mut b, -1.0, 100);
+    // Said once; the joint brakes (no turning back) and then holds, torque on, no watchdog.
+    assert_eq!(events, vec![Event::Ignored(Operator::Estop)], "{events:?}");
+    let held: Vec<f64> = b.backend().writes[moving..]
+        .iter()
+        .map(|w| w.1[0])
+        .collect();
+    assert!(
+        held.windows(2).all(|w| w[1] >= w[0] - 1e-12),
+        "turned back: {held:?}"
+    );
+    let rest = held[held.len() - 1];
+    assert!(
+        held[held.len() - 30..].iter().all(|&x| x == rest),
+        "still moving"
+    );
+    assert_eq!(b.state(), Lifecycle::Active);
+    assert!(b.release_estop());
+    assert!(!b.release_estop(), "released twice");
+    run(&mut b, -1.0, 200);
+    let (_, dv) = worst_steps(&b.backend().writes, 0);
+    assert!(dv <= 20.0 * 0.01 + 1e-9, "{dv}");
+    assert!(
+        (b.written_rad()[0] + 1.0).abs() < 1e-9,
+        "{:?}",
+        b.written_rad()
+    );
+}
+
+#[test]
+fn torque_off_on_request_ignores_commands_and_torque_on_holds_the_measured_pose() {
+    let mut b = JointBridge::new(
+        Servos::new(vec![0.0], vec![-0.3]),
+        vec![spec("a", -1.5, 1.5, 1.0)],
+        config(),
+    );
+    b.start().unwrap();
+    for i in 0..50 {
+        let t = f64::from(i) * 0.01;
+        b.command(t, &names(&["a"]), &[0.5]);
+        let _ = b.tick(t);
+    }
+    b.set_torque(false).unwrap();
+    assert!(!b.backend().torque);
+    let writes = b.backend().writes.len();
+    assert_eq!(
+        b.command(0.6, &names(&["a"]), &[0.5]),
+        vec![Event::Ignored(Operator::TorqueOff)]
+    );
+    let _ = b.tick(0.6); // reads the fallen pose, -0.3
+    assert_eq!(
+        b.backend().writes.len(),
+        writes,
+        "wrote with the torque off"
+    );
+    // An emergency stop meanwhile keeps it off.
+    b.estop();
+    assert_eq!(b.set_torque(true), Err(TorqueError::Estop));
+    assert!(b.release_estop());
+    b.set_torque(true).unwrap();
+    assert!(b.backend().torque);
+    let _ = b.tick(0.61);
+    assert_eq!(b.written_rad(), [-0.3], "holds the measured pose, not 0.5");
+    // Commands are taken again, approached smoothly.
+    for i in 62..200 {
+        let t = f64::from(i) * 0.01;
+        b.command(t, &names(&["a"]), &[0.5]);
+        let _ = b.tick(t);
+    }
+    assert!((b.written_rad()[0] - 0.5).abs() < 1e-9);
+    let after = &b.backend().writes[writes..];
+    let (_, dv) = worst_steps(after, 0);
+    assert!(dv <= 20.0 * 0.01 + 1e-9, "{dv}");
+}
+
+#[test]
+fn a_restart_or_reconnection_leaves_the_torque_the_operator_turned_off_off() {
+    let mut b = JointBridge::new(
+        Servos::new(vec![0.0], vec![0.4]),
+        vec![spec("a", -1.5, 1.5, 1.0)],
+        config(),
+    );
+    b.start().unwrap();
+    for i in 0..20 {
+        let t = f64::from(i) * 0.01;
+        b.command(t, &names(&["a"]), &[1.2]);
+        let _ = b.tick(t);
+    }
+    b.set_torque(false).unwrap();
+    let writes = b.backend().writes.len();
+    b.stop().unwrap();
+    b.start().unwrap();
+    for i in 20..60 {
+        let _ = b.tick(f64::from(i) * 0.01);
+    }
+    assert!(!b.backend().torque, "a restart turned the torque back on");
+    assert_eq!(b.state(), Lifecycle::Inactive);
+    assert_eq!(
+        b.backend().writes.len(),
+        writes,
+        "wrote with the torque off"
+    );
+    // On again: it holds where the joint fell, not the command from before (1.2).
+    b.set_torque(true).unwrap();
+    for i in 60..120 {
+        let _ = b.tick(f64::from(i) * 0.01);
+    }
+    assert_eq!(b.written_rad(), [0.4]);
+}
+
+#[test]
+fn torque_requests_before_start_are_refused_naming_the_state() {
+    let mut b = JointBridge::new(
+        Servos::new(vec![0.0], vec![0.0]),
+        vec![spec("a", -1.5, 1.5, 1.0)],
+        config(),
+    );
+    let e = b.set_torque(true).unwrap_err();
+    assert!(e.to_string().contains("Unconfigured"), "{e}");
+}
+
+#[test]
+fn the_managed_transitions_hold_release_and_turn_the_torque_off() {
+    use joint_bridge::managed::{ManagedState, apply, find};
+    let mut b = JointBridge::new(
+        Servos::new(vec![0.0], vec![-0.3]),
+        vec![spec("a", -1.5, 1.5, 1.0)],
+        config(),
+    );
+    b.start().unwrap();
+    let mut state = ManagedState::Active;
+    let mut go = |b: &mut JointBridge<Servos>, label: &str| {
+        let tr = find(state, 0, label).unwrap();
+        state = apply(b, tr).unwrap();
+        state
+    };
+    let mut t = 0.0;
+    let mut run = |b: &mut JointBridge<Servos>, goal: f64, ticks: u32| {
+        for _ in 0..ticks {
+            t += 0.01;
+            b.command(t, &names(&["a"]), &[goal]);
+            let _ = b.tick(t);
+        }
+    };
+    run(&mut b, 0.4, 100);
+    assert_eq!(go(&mut b, "deactivate"), ManagedState::Inactive);
+    run(&mut b, -1.0, 50);
+    assert!(
+        (b.written_rad()[0] - 0.4).abs() < 1e-9,
+        "moved while inactive"
+    );
+    assert!(b.backend().torque, "inactive holds with the torque on");
+    assert_eq!(go(&mut b, "cleanup"), ManagedState::Unconfigured);
+    assert!(!b.backend().torque);
+    run(&mut b, -1.0, 5); // the joint falls to -0.3
+    assert_eq!(go(&mut b, "configure"), ManagedState::Inactive);
+    let configured = b.backend().writes.len();
+    run(&mut b, -1.0, 5);
+    assert!(
+        (b.written_rad()[0] + 0.3).abs() < 1e-9,
+        "configure holds the measured pose"
+    );
+    assert_eq!(go(&mut b, "activate"), ManagedState::Active);
+    run(&mut b, 0.2, 200);
+    assert!((b.written_rad()[0] - 0.2).abs() < 1e-9);
+    // From the configured hold on (the joint fell while the torque was off).
+    let (_, dv) = worst_steps(&b.backend().writes[configured..], 0);
+    assert!(dv <= 20.0 * 0.01 + 1e-9, "{dv}");
+    assert_eq!(go(&mut b, "shutdown"), ManagedState::Finalized);
+    assert!(!b.backend().torque);
+}
+
 /// What a test stream does at one tick.
 #[derive(Debug, Clone)]
 enum Act {
@@ -279,6 +475,10 @@ enum Act {
     Stall(f64),
     /// Stop (torque off) and start again.
     Restart,
+    /// The operator's emergency stop, or its release.
+    Estop(bool),
+    /// The operator's torque request (off: limp; on: hold the measured pose).
+    Torque(bool),
 }
 
 fn act() -> impl Strategy<Value = Act> {
@@ -288,6 +488,8 @@ fn act() -> impl Strategy<Value = Act> {
         3 => Just(Act::Silence),
         1 => (0.0..2.0f64).prop_map(Act::Stall),
         1 => Just(Act::Restart),
+        1 => any::<bool>().prop_map(Act::Estop),
+        1 => any::<bool>().prop_map(Act::Torque),
     ]
 }
 
@@ -304,7 +506,7 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
 
     /// Random streams of commands, jumps, NaN, silences (the watchdog holds or goes limp),
-    /// stalls and restarts: every write is finite, within the joint limits, and between two
+    /// stalls, restarts, emergency stops and torque requests: every write is finite, within the joint limits, and between two
     /// writes the speed stays within v_max and changes by at most a_max x dt; after a limp or
     /// a restart the next write continues from the measured pose within the same limits.
     #[test]
@@ -339,6 +541,10 @@ proptest! {
                     b.start().unwrap();
                     last = (prev_t, b.backend().pose[0], 0.0);
                 }
+                Act::Estop(true) => b.estop(),
+                Act::Estop(false) => { b.release_estop(); }
+                // Refused during an emergency stop: nothing changes then.
+                Act::Torque(on) => { let _ = b.set_torque(*on); }
             }
             if limp_before {
                 // The joint lay where gravity took it, at rest.
