@@ -663,3 +663,81 @@ fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
     assert!(yaw_err < 5.0, "odometry heading {yaw_err} deg off");
     assert_timed_out(&v);
 }
+
+/// An operator's `ros2 service call /joint_bridge/estop std_srvs/srv/Trigger` mid-walk: the
+/// bridge answers, brakes and holds while the planner goes on commanding; `~/reset` lets the
+/// walk move the joints again; `~/set_torque` answers both ways; a reset with no stop on is
+/// refused, saying so.
+#[test]
+fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services() {
+    let v = peer("estop", 87);
+    assert_eq!(v["nodes_seen"], true);
+    assert_eq!(
+        v["flowing"], true,
+        "joint commands and states never flowed: {}",
+        v["flow_diag"]
+    );
+    assert_eq!(v["moving"], true, "the walk never moved the joints");
+    let ok = |k: &str| {
+        assert_eq!(v[k]["success"], true, "{k}: {}", v[k]);
+    };
+    ok("estop");
+    ok("reset");
+    ok("torque_off");
+    ok("torque_on");
+    assert_eq!(v["early_reset"]["success"], false, "{}", v["early_reset"]);
+    assert!(
+        v["early_reset"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("no emergency stop"),
+        "{}",
+        v["early_reset"]
+    );
+    let states = v["states"].as_array().unwrap();
+    let pos = |s: &Value| -> Vec<f64> {
+        s["position"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let t = |s: &Value| s["t"].as_f64().unwrap();
+    let (answered, reset_t) = (
+        v["estop_answered_t"].as_f64().unwrap(),
+        v["reset_t"].as_f64().unwrap(),
+    );
+    // Held from the answer plus the braking time (6 rad/s at 100 rad/s²: 0.06 s) and a few
+    // bridge periods, until the reset: nothing moves, though the walk goes on commanding.
+    let held: Vec<&Value> = states
+        .iter()
+        .filter(|s| t(s) > answered + 0.15 && t(s) < reset_t)
+        .collect();
+    assert!(held.len() > 50, "joint_states keep coming while holding");
+    for s in &held {
+        assert_eq!(
+            pos(s),
+            pos(held[0]),
+            "joint moved at t = {} during the stop",
+            t(s)
+        );
+    }
+    // After the reset, the walk moves the joints again.
+    let after: Vec<&Value> = states
+        .iter()
+        .filter(|s| t(s) > reset_t + 0.2 && t(s) < reset_t + 1.5)
+        .collect();
+    assert!(after.len() > 50);
+    assert!(
+        after.iter().any(|s| pos(s) != pos(held[0])),
+        "the joints never moved after the reset"
+    );
+    assert!(rosout_has(
+        &v,
+        "joint_bridge",
+        &["emergency stop", "~/reset"]
+    ));
+    assert!(rosout_has(&v, "joint_bridge", &["joint commands ignored"]));
+    assert_eq!(v["exits"]["joint_bridge"]["returncode"], 0);
+}

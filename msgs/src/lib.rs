@@ -5,6 +5,7 @@
 //!   nodes use, fields in `.msg` order so their CDR encoding is the ROS one. Each type names
 //!   its ROS type and fields through [`RosMessage`]; a test checks them field by field against
 //!   the types rosidl generates from the `.msg` files.
+//! - [`srv`]: the service types the nodes serve (`std_srvs` Trigger and SetBool).
 //! - [`type_description`]: what rosbag2 stores about a type: its RIHS01 hash and `ros2msg`
 //!   definition, computed from the same field lists.
 //!
@@ -12,6 +13,7 @@
 //! types (`--ros-args`, parameters, the DDS context, logging, ticks) is `node_runtime`'s.
 
 pub mod msg;
+pub mod srv;
 pub mod type_description;
 
 pub use msg::RosMessage;

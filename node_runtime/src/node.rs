@@ -249,6 +249,32 @@ impl RosNode {
             .map_err(dds_err(format!("topic {name}")))
     }
 
+    /// A server of service `S` on `name`: `~/x` is the node's private `<node>/x`; remapped,
+    /// in the namespace; ROS's service QoS, the names and types ROS 2 tools call.
+    pub fn service<S: biped_msgs::srv::RosService>(
+        &mut self,
+        name: &str,
+    ) -> Result<ros2_client::Server<S::Request, S::Response>, RosError> {
+        let private = name
+            .strip_prefix("~/")
+            .map(|rest| format!("{}/{rest}", self.setup.name));
+        let resolved = topic_name(
+            &self.setup.args,
+            &self.setup.namespace,
+            private.as_deref().unwrap_or(name),
+        )?;
+        let qos = qos::service();
+        self.node
+            .create_server::<S::Request, S::Response>(
+                ros2_client::ServiceMapping::Enhanced,
+                &resolved,
+                &S::service_type_name(),
+                qos.clone(),
+                qos,
+            )
+            .map_err(dds_err(format!("service {name}")))
+    }
+
     /// A publisher of `M` on topic `name` (remapped, in the namespace), default QoS.
     pub fn publisher<M: RosMessage>(
         &mut self,

@@ -35,3 +35,8 @@ pub fn latched() -> QosProfile {
             when_full: WhenFull::Fail,
         })
 }
+
+/// Services (requests and responses): ROS's service default, reliable, volatile, keep last 10.
+pub fn service() -> QosProfile {
+    default()
+}

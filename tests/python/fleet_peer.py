@@ -320,6 +320,45 @@ def scenario_watchdog(bin_dir, params):
     return out
 
 
+def scenario_estop(bin_dir, params):
+    """Mid-walk, an operator calls ~/estop on the joint bridge (std_srvs/Trigger, as `ros2
+    service call /joint_bridge/estop std_srvs/srv/Trigger` does); later ~/reset, then
+    ~/set_torque false and true (std_srvs/SetBool). Records every answer and joint_states."""
+    from std_srvs.srv import SetBool, Trigger
+    procs = start_nodes(bin_dir, params)
+    peer = Peer()
+    out = {"nodes_seen": peer.wait_for_nodes(), "matched": peer.wait_for_subscribers(peer.walk_pub)}
+    out["flowing"] = peer.wait_for_flow()
+    out["flow_diag"] = getattr(peer, "flow_diag", None)
+    if not out["flowing"]:
+        out["exits"] = stop_nodes(procs)
+        print(json.dumps(out["exits"]), file=sys.stderr)
+        return out
+
+    def answer(r):
+        return None if r is None else {"success": bool(r.success), "message": r.message}
+
+    # A reset with nothing to reset is refused, saying so.
+    out["early_reset"] = answer(peer.call(Trigger, "/joint_bridge/reset", Trigger.Request()))
+    peer.walk(0)  # until stopped
+    first = peer.states[-1]["position"]
+    out["moving"] = peer.spin(30.0, lambda: peer.states[-1]["position"] != first)
+    peer.spin(1.5)
+    out["estop_t"] = time.time()  # the clock of the joint_states stamps
+    out["estop"] = answer(peer.call(Trigger, "/joint_bridge/estop", Trigger.Request()))
+    out["estop_answered_t"] = time.time()
+    peer.spin(2.0)
+    out["reset_t"] = time.time()
+    out["reset"] = answer(peer.call(Trigger, "/joint_bridge/reset", Trigger.Request()))
+    peer.spin(1.5)
+    out["torque_off"] = answer(peer.call(SetBool, "/joint_bridge/set_torque", SetBool.Request(data=False)))
+    out["torque_on"] = answer(peer.call(SetBool, "/joint_bridge/set_torque", SetBool.Request(data=True)))
+    peer.spin(0.5)
+    out.update(states=peer.states, rosout=peer.rosout)
+    out["exits"] = stop_nodes(procs)
+    return out
+
+
 def scenario_launch(bin_dir, params):
     biped = os.path.join(bin_dir, "biped")
     log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test")
@@ -546,7 +585,7 @@ def main():
     scenario, bin_dir = sys.argv[1], sys.argv[2]
     params = sys.argv[3] if len(sys.argv) > 3 else None
     result = {"walk": scenario_walk, "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
-              "watchdog": scenario_watchdog,
+              "watchdog": scenario_watchdog, "estop": scenario_estop,
               "launch": scenario_launch,
               "sim": scenario_sim}[scenario](bin_dir, params)
     json.dump(result, sys.stdout)

@@ -18,6 +18,9 @@
 //! `joint_states_measured` (whether `joint_states` carries measured positions or, for
 //! backends that cannot measure, the commanded ones).
 //!
+//! Services: `~/estop` and `~/reset` (std_srvs/srv/Trigger: hold and ignore commands, then
+//! take them again) and `~/set_torque` (std_srvs/srv/SetBool), answered between ticks.
+//!
 //! With a serial board the node also publishes `/diagnostics`
 //! (diagnostic_msgs/msg/DiagnosticArray, once a second): the board's state and wire
 //! counters (timeouts, corrupted replies, reconnections, servo error bits).
@@ -35,6 +38,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use biped_msgs::msg::{DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue};
+use biped_msgs::srv::{SetBool, SetBoolRequest, Trigger, TriggerRequest, TriggerResponse};
 use ik_solver::BipedModel;
 use joint_bridge::{
     Backend, Backoff, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend,
@@ -252,6 +256,7 @@ fn run() -> anyhow::Result<()> {
             ),
         };
     let diagnostics = ros.publisher::<DiagnosticArray>("/diagnostics")?;
+    let operator = OperatorServices::new(&mut ros)?;
     let mut bridge = JointBridge::new(
         backend,
         joints.clone(),
@@ -323,6 +328,7 @@ fn run() -> anyhow::Result<()> {
     let last_diagnostics = std::cell::Cell::new(None::<Instant>);
     // One control period at t: watchdog, write, read back, publish.
     let do_tick = |bridge: &mut JointBridge<Box<dyn Backend>>, t_s: f64| {
+        operator.serve(&ros, bridge);
         let (reading, events) = bridge.tick(t_s);
         report(events);
         if let Some(link) = &link
@@ -460,6 +466,70 @@ fn run() -> anyhow::Result<()> {
     }
     ros.info("shutting down: torque off");
     Ok(())
+}
+
+/// The operator's services, answered between ticks: `~/estop` (std_srvs/srv/Trigger: hold
+/// where the joints come to rest, ignore commands until `~/reset`), `~/reset` (Trigger) and
+/// `~/set_torque` (std_srvs/srv/SetBool: off goes limp and ignores commands; on holds the
+/// measured pose and takes commands again).
+struct OperatorServices {
+    estop: ros2_client::Server<TriggerRequest, TriggerResponse>,
+    reset: ros2_client::Server<TriggerRequest, TriggerResponse>,
+    torque: ros2_client::Server<SetBoolRequest, TriggerResponse>,
+}
+
+impl OperatorServices {
+    fn new(ros: &mut RosNode) -> anyhow::Result<Self> {
+        Ok(Self {
+            estop: ros.service::<Trigger>("~/estop")?,
+            reset: ros.service::<Trigger>("~/reset")?,
+            torque: ros.service::<SetBool>("~/set_torque")?,
+        })
+    }
+
+    /// Answers every request waiting, acting on the bridge; logs each answer (a warning when
+    /// done, an error when refused).
+    fn serve<B: Backend>(&self, ros: &RosNode, bridge: &mut JointBridge<B>) {
+        let answer = |outcome: Result<String, String>| {
+            let (success, message) = match outcome {
+                Ok(m) => {
+                    ros.warn(&m);
+                    (true, m)
+                }
+                Err(m) => {
+                    ros.error(&m);
+                    (false, m)
+                }
+            };
+            TriggerResponse { success, message }
+        };
+        while let Ok(Some((id, _))) = self.estop.receive_request() {
+            bridge.estop();
+            let a = answer(Ok("emergency stop: holding where the joints come to rest; joint commands ignored until ~/reset".into()));
+            let _ = self.estop.send_response(id, a);
+        }
+        while let Ok(Some((id, _))) = self.reset.receive_request() {
+            let outcome = if bridge.release_estop() {
+                Ok("emergency stop released: joint commands taken again".into())
+            } else {
+                Err("reset: no emergency stop was on".into())
+            };
+            let _ = self.reset.send_response(id, answer(outcome));
+        }
+        while let Ok(Some((id, req))) = self.torque.receive_request() {
+            let on = req.data;
+            let outcome = match bridge.set_torque(on) {
+                Ok(()) if on => {
+                    Ok("torque on: holding the measured pose; joint commands taken again".into())
+                }
+                Ok(()) => Ok(
+                    "torque off on request: joint commands ignored until ~/set_torque true".into(),
+                ),
+                Err(e) => Err(format!("set_torque {on} refused: {e}")),
+            };
+            let _ = self.torque.send_response(id, answer(outcome));
+        }
+    }
 }
 
 /// The next joint command waiting, if any (unreadable ones are dropped with a warning).
