@@ -342,6 +342,11 @@ echo "replay exit $rc, joint_bridge exit $jrc" >&2
         .arg(format!("port:={}", dev.display()))
         .args(["-p", "baud:=1000000", "-p"])
         .arg(format!("calibration_file:={}", cal_file.display()))
+        // What this test follows is each recorded command through the calibration to the
+        // board, packet for packet, with the velocity limit. The bridge's acceleration limit
+        // (joint_bridge/tests/no_snap.rs tests it) would smooth the replay's timing jitter
+        // into goals between recorded commands, so it is set out of the way here.
+        .args(["-p", "acceleration_limit_rad_s2:=100000"])
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

@@ -667,7 +667,7 @@ fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
 /// An operator's `ros2 service call /joint_bridge/estop std_srvs/srv/Trigger` mid-walk: the
 /// bridge answers, brakes and holds while the planner goes on commanding; `~/reset` lets the
 /// walk move the joints again; `~/set_torque` answers both ways; a reset with no stop on is
-/// refused, saying so.
+/// refused, saying so. Before that, a walk scheduled ahead is cancelled by a stop.
 #[test]
 fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services() {
     let v = peer("estop", 87);
@@ -686,6 +686,17 @@ fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services()
     ok("torque_off");
     ok("torque_on");
     assert_eq!(v["early_reset"]["success"], false, "{}", v["early_reset"]);
+    // A walk scheduled ahead, then a stop: the stop cancelled it, the planner stayed idle.
+    assert_eq!(
+        v["phases_after_cancel"],
+        serde_json::json!(["idle"]),
+        "phases after the stop"
+    );
+    assert!(rosout_has(
+        &v,
+        "gait_planner",
+        &["1 walk command(s) waiting for their start time cancelled"]
+    ));
     assert!(
         v["early_reset"]["message"]
             .as_str()

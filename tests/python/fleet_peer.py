@@ -340,6 +340,15 @@ def scenario_estop(bin_dir, params):
 
     # A reset with nothing to reset is refused, saying so.
     out["early_reset"] = answer(peer.call(Trigger, "/joint_bridge/reset", Trigger.Request()))
+    # A walk scheduled 1.5 s ahead, then a stop: the stop cancels it, nothing walks.
+    from builtin_interfaces.msg import Time
+    start = time.time() + 1.5
+    peer.walk_pub.publish(WalkCommand(steps=2, start_time=Time(sec=int(start), nanosec=int((start % 1) * 1e9))))
+    peer.spin(0.3)
+    peer.walk(0, stop=True)
+    cancel_from = len(peer.phases)
+    peer.spin(3.0)
+    out["phases_after_cancel"] = sorted({p["phase"] for p in peer.phases[cancel_from:]})
     peer.walk(0)  # until stopped
     first = peer.states[-1]["position"]
     out["moving"] = peer.spin(30.0, lambda: peer.states[-1]["position"] != first)

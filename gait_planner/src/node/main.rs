@@ -27,7 +27,8 @@
 //! monotonic clock, or with `use_sim_time` from `/clock` (a repeated `/clock` value, which a
 //! lockstep simulator sends while it waits, republishes the tick's messages). A
 //! `walk_command` with a `start_time` is taken at the first tick at or after it; the same
-//! stamped command received again is taken once.
+//! stamped command received again is taken once; a stop, when taken, also cancels the walks
+//! still waiting for their start time; at most 64 commands wait (more are dropped, warned).
 
 mod markers;
 
@@ -41,7 +42,8 @@ use biped_msgs::msg::{
     PoseWithCovariance, TFMessage, Twist, TwistWithCovariance, Vector3, WalkCommand,
 };
 use gait_planner::{
-    GaitParams, GaitPlanner, GaitSample, PhaseKind, Stride, Velocity, VelocityFollower, WalkRequest,
+    GaitParams, GaitPlanner, GaitSample, PhaseKind, StartQueue, Stride, Velocity, VelocityFollower,
+    WalkRequest,
 };
 use ik_solver::{BipedModel, LegOdometry};
 use node_runtime::{NodeSetup, RosNode, TickSource};
@@ -500,8 +502,8 @@ fn run() -> anyhow::Result<()> {
     };
     let result: anyhow::Result<()> = smol::block_on(executor.run(async {
         let mut last_phase = None;
-        // Walk commands with a start time still ahead.
-        let mut pending: Vec<WalkCommand> = Vec::new();
+        // Walk commands with a start time still ahead (bounded; a stop empties it).
+        let mut pending: StartQueue<WalkCommand> = StartQueue::default();
         let mut last_stamped: Option<WalkCommand> = None;
         let mut last_sent: Option<(GaitPhase, AnkleTargets)> = None;
         while !stop.load(Ordering::SeqCst) {
@@ -537,15 +539,22 @@ fn run() -> anyhow::Result<()> {
                     if msg.start_time.to_nanos() != 0 {
                         last_stamped = Some(msg.clone());
                     }
-                    pending.push(msg);
+                    if let Err(e) = pending.push(msg.start_time.to_nanos(), msg) {
+                        ros.warn(&format!("walk_command: {e}"));
+                    }
                 }
             }
-            // In arrival order, each at its start time (zero: now).
-            while let Some(i) = pending
-                .iter()
-                .position(|c| c.start_time.to_nanos() <= now.to_nanos())
-            {
-                let msg = pending.remove(i);
+            // In arrival order, each at its start time (zero: now). A stop also cancels the
+            // walks still waiting for their start time: a stop means stop.
+            while let Some(msg) = pending.take_due(now.to_nanos()) {
+                if msg.stop {
+                    let n = pending.cancel_all();
+                    if n > 0 {
+                        ros.warn(&format!(
+                            "walk_command stop: {n} walk command(s) waiting for their start time cancelled"
+                        ));
+                    }
+                }
                 for w in commands.walk_command(&mut planner, &msg, &mut params) {
                     ros.warn(&w);
                 }
