@@ -145,6 +145,32 @@ fn assert_timed_out(v: &Value) {
     );
 }
 
+/// The nodes were seen, commands and states flowed, and the walk moved the joints.
+fn assert_walk_moved(v: &Value) {
+    assert_eq!(v["nodes_seen"], true);
+    assert_eq!(
+        v["flowing"], true,
+        "joint commands and states never flowed: {}",
+        v["flow_diag"]
+    );
+    assert_eq!(v["moving"], true, "the walk never moved the joints");
+}
+
+/// A recorded joint_states message's positions (rad).
+fn state_positions(s: &Value) -> Vec<f64> {
+    s["position"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+/// A recorded joint_states message's stamp (the bridge's clock, s).
+fn state_t(s: &Value) -> f64 {
+    s["t"].as_f64().unwrap()
+}
+
 fn rosout_has(v: &Value, node: &str, needles: &[&str]) -> bool {
     v["rosout"].as_array().unwrap().iter().any(|m| {
         let msg = m["msg"].as_str().unwrap_or_default();
@@ -365,24 +391,10 @@ fn an_rclpy_teleop_side_steps_the_robot_and_the_walk_ends_when_it_stops() {
 #[test]
 fn killing_ik_solver_mid_walk_makes_the_bridge_hold_the_pose() {
     let v = peer("watchdog", 62);
-    assert_eq!(v["nodes_seen"], true);
-    assert_eq!(
-        v["flowing"], true,
-        "joint commands and states never flowed: {}",
-        v["flow_diag"]
-    );
-    assert_eq!(v["moving"], true, "the walk never moved the joints");
+    assert_walk_moved(&v);
     let kill_t = v["kill_t"].as_f64().unwrap();
     let states = v["states"].as_array().unwrap();
-    let pos = |s: &Value| -> Vec<f64> {
-        s["position"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
-    };
-    let t = |s: &Value| s["t"].as_f64().unwrap();
+    let (pos, t) = (state_positions, state_t);
     // Moving before the kill (mid-walk).
     let before: Vec<&Value> = states
         .iter()
@@ -671,13 +683,7 @@ fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
 #[test]
 fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services() {
     let v = peer("estop", 87);
-    assert_eq!(v["nodes_seen"], true);
-    assert_eq!(
-        v["flowing"], true,
-        "joint commands and states never flowed: {}",
-        v["flow_diag"]
-    );
-    assert_eq!(v["moving"], true, "the walk never moved the joints");
+    assert_walk_moved(&v);
     let ok = |k: &str| {
         assert_eq!(v[k]["success"], true, "{k}: {}", v[k]);
     };
@@ -706,15 +712,7 @@ fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services()
         v["early_reset"]
     );
     let states = v["states"].as_array().unwrap();
-    let pos = |s: &Value| -> Vec<f64> {
-        s["position"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect()
-    };
-    let t = |s: &Value| s["t"].as_f64().unwrap();
+    let (pos, t) = (state_positions, state_t);
     let (answered, reset_t) = (
         v["estop_answered_t"].as_f64().unwrap(),
         v["reset_t"].as_f64().unwrap(),

@@ -295,8 +295,9 @@ def scenario_teleop(bin_dir, params):
     return out
 
 
-def scenario_watchdog(bin_dir, params):
-    extra = {"joint_bridge": ["-p", "watchdog_timeout_s:=0.2"]}
+def start_flowing(bin_dir, params, extra=None):
+    """Starts the nodes and a peer, and waits for commands and states to flow; if they never
+    do, the nodes are stopped already (out["flowing"] false)."""
     procs = start_nodes(bin_dir, params, extra)
     peer = Peer()
     out = {"nodes_seen": peer.wait_for_nodes(), "matched": peer.wait_for_subscribers(peer.walk_pub)}
@@ -305,6 +306,13 @@ def scenario_watchdog(bin_dir, params):
     if not out["flowing"]:
         out["exits"] = stop_nodes(procs)
         print(json.dumps(out["exits"]), file=sys.stderr)
+    return procs, peer, out
+
+
+def scenario_watchdog(bin_dir, params):
+    extra = {"joint_bridge": ["-p", "watchdog_timeout_s:=0.2"]}
+    procs, peer, out = start_flowing(bin_dir, params, extra)
+    if not out["flowing"]:
         return out
     peer.walk(0)  # until stopped
     # Into the walk (crouch 1 s, then the 2 s shift): wait until the joints move, then a bit.
@@ -325,14 +333,8 @@ def scenario_estop(bin_dir, params):
     service call /joint_bridge/estop std_srvs/srv/Trigger` does); later ~/reset, then
     ~/set_torque false and true (std_srvs/SetBool). Records every answer and joint_states."""
     from std_srvs.srv import SetBool, Trigger
-    procs = start_nodes(bin_dir, params)
-    peer = Peer()
-    out = {"nodes_seen": peer.wait_for_nodes(), "matched": peer.wait_for_subscribers(peer.walk_pub)}
-    out["flowing"] = peer.wait_for_flow()
-    out["flow_diag"] = getattr(peer, "flow_diag", None)
+    procs, peer, out = start_flowing(bin_dir, params)
     if not out["flowing"]:
-        out["exits"] = stop_nodes(procs)
-        print(json.dumps(out["exits"]), file=sys.stderr)
         return out
 
     def answer(r):
