@@ -103,7 +103,12 @@ class Peer:
         return self.spin(timeout, lambda: publisher.get_subscription_count() > 0)
 
     def call(self, srv_type, name, request, timeout=30.0):
-        client = self.node.create_client(srv_type, name)
+        # One client per service, kept: a new client's endpoints must be discovered by the
+        # server again (seconds with RustDDS), which would delay the call by that much.
+        clients = self.__dict__.setdefault("clients", {})
+        client = clients.get(name)
+        if client is None:
+            client = clients[name] = self.node.create_client(srv_type, name)
         if not client.wait_for_service(timeout_sec=timeout):
             return None
         future = client.call_async(request)
@@ -361,7 +366,9 @@ def scenario_estop(bin_dir, params):
     peer.spin(2.0)
     out["reset_t"] = time.time()
     out["reset"] = answer(peer.call(Trigger, "/joint_bridge/reset", Trigger.Request()))
+    out["reset_answered_t"] = time.time()
     peer.spin(1.5)
+    out["torque_t"] = time.time()
     out["torque_off"] = answer(peer.call(SetBool, "/joint_bridge/set_torque", SetBool.Request(data=False)))
     out["torque_on"] = answer(peer.call(SetBool, "/joint_bridge/set_torque", SetBool.Request(data=True)))
     peer.spin(0.5)
