@@ -355,7 +355,11 @@ impl GaitPlanner {
     }
 
     /// Walks `stride` on a copy of this planner, from its last update through the next
-    /// swing and the shift after it (or to the end of the walk), and checks every tick.
+    /// swing and the shift after it, then a stop (the closing half step and the centring),
+    /// and checks every tick. Checking the way back too keeps every accepted stride
+    /// stoppable and leaves a stride of zero (what a refused stride falls back to) feasible
+    /// at the next swing: a stride whose next swing is fine but whose feet cannot be brought
+    /// together again is lowered before it is taken.
     fn check_next_step(&self, stride: Stride) -> Result<(), GaitError> {
         let mut sim = self.clone();
         sim.stride = stride;
@@ -368,18 +372,24 @@ impl GaitPlanner {
             0.0
         };
         let first_new = self.phase.step_index + 1;
-        let dt = self.cfg.dt_s();
+        let c = &self.cfg;
+        let dt = c.dt_s();
         let mut samples = Vec::new();
-        // At most a crouch, a shift, a swing and a shift from here.
-        let limit = ((self.cfg.crouch_duration_s
-            + 2.0 * self.cfg.shift_duration_s
-            + 2.0 * self.cfg.step_duration_s)
-            / dt)
-            .ceil() as u64
-            + 2;
+        // At most the rest of this phase, a crouch, a shift, the new swing, a shift, the
+        // closing half step, the centring and a rise.
+        let limit =
+            ((2.0 * c.crouch_duration_s + 4.0 * c.shift_duration_s + 3.0 * c.step_duration_s) / dt)
+                .ceil() as u64
+                + 4;
+        let mut stopping = false;
         for k in 1..=limit {
             let s = sim.update(t0 + k as f64 * dt)?;
-            let done = s.step_index > first_new || (s.phase == PhaseKind::Idle && k > 1);
+            // Asked during the new swing, the stop is taken when it lands.
+            if !stopping && s.step_index >= first_new {
+                sim.request(WalkRequest::Stop);
+                stopping = true;
+            }
+            let done = s.phase == PhaseKind::Idle && k > 1;
             samples.push(s);
             if done {
                 break;

@@ -423,3 +423,49 @@ proptest! {
         }
     }
 }
+
+/// A case the random walks found (seed cc b9fe3eec…): a turning, side-stepping arc, then
+/// a stride of zero, then a stop. The closing steps must keep every joint within its
+/// limits (the left ankle roll needed 0.50016 rad against its 0.5 rad limit at 6.3 s).
+#[test]
+fn an_arc_then_standing_still_then_a_stop_stays_within_the_joint_limits() {
+    let model = biped6_model();
+    let strides = [
+        (
+            0.47753459344933563,
+            -0.9542293126927226,
+            -0.5480892873187272,
+        ),
+        (0.0, 0.0, 0.0),
+    ];
+    let (c, samples) = walk_random(&model, &strides);
+    let mut last = String::new();
+    for s in &samples {
+        let k = format!("{} {} {:?}", s.phase, s.step_index, s.support);
+        if k != last {
+            eprintln!("{:.2} {}", s.t_s, k);
+            last = k;
+        }
+    }
+    for s in &samples {
+        assert!(
+            s.issues.is_empty(),
+            "t = {} ({}): {:?}",
+            s.t_s,
+            s.phase,
+            s.issues
+        );
+        assert!(
+            s.margin_m >= c.min_com_margin_m - 1e-12,
+            "t = {}: margin {}",
+            s.t_s,
+            s.margin_m
+        );
+        assert!(
+            !corners_inside(&model, s),
+            "t = {} ({}): the soles overlap",
+            s.t_s,
+            s.phase
+        );
+    }
+}
