@@ -221,21 +221,28 @@ enum Command {
 }
 
 fn load_model(args: &RobotArgs) -> anyhow::Result<BipedModel> {
-    model_of(args.robot.as_deref(), args.leg_map.as_deref())
+    model_of(
+        args.robot.as_deref(),
+        leg_map_of(args.leg_map.as_deref())?.as_ref(),
+    )
 }
 
-/// The robot of a `--robot` URDF (none: the built-in robot) and a `--leg-map` (none: legs
-/// found by their axes).
+/// The leg map of a `--leg-map` file (none: legs found by their axes).
+pub(crate) fn leg_map_of(path: Option<&std::path::Path>) -> anyhow::Result<Option<LegRoleMap>> {
+    Ok(path.map(LegRoleMap::from_yaml_file).transpose()?)
+}
+
+/// The robot of a `--robot` URDF (none: the built-in robot) with its leg map.
 pub(crate) fn model_of(
     robot: Option<&std::path::Path>,
-    leg_map: Option<&std::path::Path>,
+    role_map: Option<&LegRoleMap>,
 ) -> anyhow::Result<BipedModel> {
-    let role_map = leg_map.map(LegRoleMap::from_yaml_file).transpose()?;
     match robot {
-        Some(p) => BipedModel::from_urdf_file(p, role_map.as_ref())
+        Some(p) => BipedModel::from_urdf_file(p, role_map)
             .with_context(|| format!("robot {}", p.display())),
-        None => BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, role_map.as_ref())
-            .context("built-in robot"),
+        None => {
+            BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, role_map).context("built-in robot")
+        }
     }
 }
 

@@ -117,17 +117,10 @@ fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
         .with_context(|| format!("gait_planner parameters in {}", path.display()))
 }
 
-/// The leg map of the walk's `--leg-map`, if any.
-fn model_role_map(o: &WalkOptions) -> anyhow::Result<Option<ik_solver::LegRoleMap>> {
-    Ok(o.leg_map
-        .as_deref()
-        .map(ik_solver::LegRoleMap::from_yaml_file)
-        .transpose()?)
-}
-
 /// Runs the walk.
 pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
-    let model = crate::model_of(o.robot.as_deref(), o.leg_map.as_deref())?;
+    let role_map = crate::leg_map_of(o.leg_map.as_deref())?;
+    let model = crate::model_of(o.robot.as_deref(), role_map.as_ref())?;
     let params = match &o.params {
         Some(p) => gait_params_of(p)?,
         None => GaitParams::default(),
@@ -169,7 +162,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
             scene,
             &map,
             &urdf,
-            model_role_map(o)?.as_ref(),
+            role_map.as_ref(),
             &Default::default(),
         )
         .with_context(|| {
