@@ -755,3 +755,154 @@ fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services()
     assert!(rosout_has(&v, "joint_bridge", &["joint commands ignored"]));
     assert_eq!(v["exits"]["joint_bridge"]["returncode"], 0);
 }
+
+/// The joint bridge as a managed node, from an rclpy lifecycle client (the services
+/// `ros2 lifecycle get/list/set` call): mid-walk, deactivate holds the joints while the walk
+/// goes on commanding, a transition not available is refused, activate by label moves them
+/// again, shutdown ends the node by itself with the torque off; each transition is
+/// published on `~/transition_event`. A bridge started with `autostart:=false` waits
+/// unconfigured (publishing nothing) until its manager configures and activates it.
+#[test]
+fn an_rclpy_lifecycle_client_deactivates_activates_and_shuts_down_the_joint_bridge() {
+    let v = peer("lifecycle", 88);
+    assert_walk_moved(&v);
+    let json = |x: Value| x;
+    assert_eq!(v["state_first"], "active");
+    assert_eq!(
+        v["available_active"],
+        json(serde_json::json!([
+            [4, "deactivate", "inactive"],
+            [7, "shutdown", "finalized"]
+        ]))
+    );
+    assert_eq!(v["deactivate"], true);
+    assert_eq!(v["state_deactivated"], "inactive");
+    assert_eq!(
+        v["available_inactive"],
+        json(serde_json::json!([
+            [2, "cleanup", "unconfigured"],
+            [3, "activate", "active"],
+            [6, "shutdown", "finalized"]
+        ]))
+    );
+    assert_eq!(
+        v["configure_from_inactive"], false,
+        "configure is not available from inactive"
+    );
+    assert!(rosout_has(
+        &v,
+        "joint_bridge",
+        &["transition 1 `` is not available from state `inactive`"]
+    ));
+    assert_eq!(v["activate"], true);
+    assert_eq!(v["state_activated"], "active");
+    assert_eq!(v["shutdown"], true);
+    assert_eq!(
+        v["bridge_exited_by_itself"], true,
+        "the bridge still ran 10 s after shutdown"
+    );
+    assert_eq!(
+        v["exits"]["joint_bridge"]["returncode"], 0,
+        "{}",
+        v["exits"]
+    );
+    let tail = v["exits"]["joint_bridge"]["stderr_tail"].as_str().unwrap();
+    assert!(tail.contains("torque off"), "{tail}");
+    // Every transition taken, in order, as `ros2 lifecycle echo` would print them.
+    let events: Vec<(String, String, String)> = v["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| {
+            (
+                e["label"].as_str().unwrap().to_owned(),
+                e["start"].as_str().unwrap().to_owned(),
+                e["goal"].as_str().unwrap().to_owned(),
+            )
+        })
+        .collect();
+    let want = [
+        ("deactivate", "active", "inactive"),
+        ("activate", "inactive", "active"),
+        ("shutdown", "active", "finalized"),
+    ]
+    .map(|(a, b, c)| (a.to_owned(), b.to_owned(), c.to_owned()));
+    assert_eq!(events, want);
+    // Inactive: held from the answer plus the braking time and a few bridge periods until
+    // the activation, though the walk goes on commanding.
+    let states = v["states"].as_array().unwrap();
+    let (pos, t) = (state_positions, state_t);
+    let (held_from, activate_t) = (
+        v["deactivate_answered_t"].as_f64().unwrap() + 0.15,
+        v["activate_t"].as_f64().unwrap(),
+    );
+    let held: Vec<&Value> = states
+        .iter()
+        .filter(|s| t(s) > held_from && t(s) < activate_t)
+        .collect();
+    assert!(held.len() > 50, "joint_states keep coming while inactive");
+    for s in &held {
+        assert_eq!(
+            pos(s),
+            pos(held[0]),
+            "joint moved at t = {} while inactive",
+            t(s)
+        );
+    }
+    let (active_from, shutdown_t) = (
+        v["activate_answered_t"].as_f64().unwrap() + 0.2,
+        v["shutdown_t"].as_f64().unwrap(),
+    );
+    let after: Vec<&Value> = states
+        .iter()
+        .filter(|s| t(s) > active_from && t(s) < shutdown_t)
+        .collect();
+    assert!(after.len() > 50);
+    assert!(
+        after.iter().any(|s| pos(s) != pos(held[0])),
+        "the joints never moved after the activation"
+    );
+    assert!(rosout_has(
+        &v,
+        "joint_bridge",
+        &["lifecycle: active -> inactive (deactivate)"]
+    ));
+    assert!(rosout_has(
+        &v,
+        "joint_bridge",
+        &["joint commands ignored: the managed node is not active"]
+    ));
+    // autostart false: unconfigured, nothing published, until configured and activated.
+    assert_eq!(
+        v["manual_state_first"], "unconfigured",
+        "{}",
+        v["manual_exits"]
+    );
+    assert_eq!(
+        v["manual_available"],
+        json(serde_json::json!([
+            [1, "configure", "inactive"],
+            [5, "shutdown", "finalized"]
+        ]))
+    );
+    assert_eq!(
+        v["manual_states_unconfigured"], 0,
+        "joint_states while unconfigured"
+    );
+    assert_eq!(v["manual_configure"], true);
+    assert_eq!(v["manual_state_configured"], "inactive");
+    assert!(
+        v["manual_states_inactive"].as_u64().unwrap() > 50,
+        "configured, the bridge holds and publishes joint_states"
+    );
+    assert_eq!(v["manual_activate"], true);
+    assert_eq!(v["manual_state_activated"], "active");
+    let said = v["manual_rosout"].to_string();
+    assert!(said.contains("unconfigured (autostart false"), "{said}");
+    assert!(!said.contains("backend read"), "{said}");
+    assert_eq!(
+        v["manual_exits"]["joint_bridge"]["returncode"], 0,
+        "{}",
+        v["manual_exits"]
+    );
+}

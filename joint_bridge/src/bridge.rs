@@ -243,7 +243,7 @@ impl fmt::Display for Event {
             ),
             Event::Ignored(Operator::Inactive) => write!(
                 f,
-                "joint commands ignored: the node is inactive (activate it to resume)"
+                "joint commands ignored: the managed node is not active (configure and activate it on ~/change_state)"
             ),
         }
     }

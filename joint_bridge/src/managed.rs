@@ -145,7 +145,11 @@ pub fn apply<B: Backend>(
     };
     match transition.label {
         "configure" => {
-            bridge.start().map_err(failed)?;
+            if let Err(e) = bridge.start() {
+                // Unconfigured again: no reconnection retries behind the manager's back.
+                let _ = bridge.stop();
+                return Err(failed(e));
+            }
             // Holding the measured pose the start found.
             bridge.hold(Operator::Inactive);
         }
@@ -181,6 +185,63 @@ mod tests {
         assert_eq!(
             e.to_string(),
             "transition 3 `activate` is not available from state `active`"
+        );
+    }
+
+    /// A board that is not there (unpowered, unplugged).
+    struct Absent;
+    impl Backend for Absent {
+        fn name(&self) -> &str {
+            "absent"
+        }
+        fn configure(&mut self, _: &[crate::JointSpec]) -> Result<Option<Vec<f64>>, BackendError> {
+            Err(BackendError::Open {
+                backend: "absent".into(),
+                why: "no such port".into(),
+            })
+        }
+        fn activate(&mut self) -> Result<(), BackendError> {
+            Ok(())
+        }
+        fn write(&mut self, _: f64, _: &[f64]) -> Result<(), BackendError> {
+            Ok(())
+        }
+        fn read(&mut self, _: f64) -> Result<crate::Reading, BackendError> {
+            Err(BackendError::Open {
+                backend: "absent".into(),
+                why: "not open".into(),
+            })
+        }
+        fn deactivate(&mut self) -> Result<(), BackendError> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_configure_that_fails_leaves_no_reconnection_running_behind_the_manager() {
+        // A serial bridge retries a failed start by itself; configured by a manager, a
+        // failure is the manager's to retry: the node stays unconfigured, nothing retries.
+        let config = crate::BridgeConfig {
+            reconnect: Some(crate::Backoff {
+                first_s: 0.1,
+                max_s: 1.0,
+            }),
+            ..Default::default()
+        };
+        let mut bridge = JointBridge::new(Absent, Vec::new(), config);
+        let configure = find(ManagedState::Unconfigured, 1, "").unwrap();
+        let e = apply(&mut bridge, configure).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "transition `configure` failed: absent: cannot open: no such port"
+        );
+        assert_ne!(bridge.state(), crate::Lifecycle::Error);
+        let (_, events) = bridge.tick(5.0);
+        assert!(
+            !events
+                .iter()
+                .any(|e| matches!(e, crate::Event::RetryFailed { .. })),
+            "{events:?}"
         );
     }
 }

@@ -5,7 +5,8 @@
 //!   nodes use, fields in `.msg` order so their CDR encoding is the ROS one. Each type names
 //!   its ROS type and fields through [`RosMessage`]; a test checks them field by field against
 //!   the types rosidl generates from the `.msg` files.
-//! - [`srv`]: the service types the nodes serve (`std_srvs` Trigger and SetBool).
+//! - [`srv`]: the service types the nodes serve (`std_srvs` Trigger and SetBool,
+//!   `lifecycle_msgs` GetState, ChangeState and GetAvailableTransitions).
 //! - [`type_description`]: what rosbag2 stores about a type: its RIHS01 hash and `ros2msg`
 //!   definition, computed from the same field lists.
 //!

@@ -989,6 +989,81 @@ ros_message!(
     [("markers", "sequence<visualization_msgs/Marker>")]
 );
 
+/// lifecycle_msgs/msg/State: a managed node's primary state (ids 1 unconfigured,
+/// 2 inactive, 3 active, 4 finalized).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LifecycleState {
+    /// The state's id.
+    pub id: u8,
+    /// Its label (`unconfigured`, `inactive`, `active`, `finalized`).
+    pub label: String,
+}
+impl ros2_client::Message for LifecycleState {}
+impl RosMessage for LifecycleState {
+    const PACKAGE: &'static str = "lifecycle_msgs";
+    const NAME: &'static str = "State";
+    const FIELDS: &'static [(&'static str, &'static str)] = &[("id", "uint8"), ("label", "string")];
+    const TYPE_NAME: &'static str = "lifecycle_msgs/msg/State";
+}
+
+/// lifecycle_msgs/msg/Transition: a managed node's transition (ids 1 configure, 2 cleanup,
+/// 3 activate, 4 deactivate, 5-7 shutdown from unconfigured, inactive, active).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Transition {
+    /// The transition's id (0: named by its label).
+    pub id: u8,
+    /// Its label (`configure`, `cleanup`, `activate`, `deactivate`, `shutdown`).
+    pub label: String,
+}
+ros_message!(
+    Transition,
+    "lifecycle_msgs",
+    [("id", "uint8"), ("label", "string")]
+);
+
+/// lifecycle_msgs/msg/TransitionDescription: a transition available from a state.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TransitionDescription {
+    /// The transition.
+    pub transition: Transition,
+    /// Where it starts.
+    pub start_state: LifecycleState,
+    /// Where it ends.
+    pub goal_state: LifecycleState,
+}
+ros_message!(
+    TransitionDescription,
+    "lifecycle_msgs",
+    [
+        ("transition", "lifecycle_msgs/Transition"),
+        ("start_state", "lifecycle_msgs/State"),
+        ("goal_state", "lifecycle_msgs/State"),
+    ]
+);
+
+/// lifecycle_msgs/msg/TransitionEvent (topic `<node>/transition_event`).
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TransitionEvent {
+    /// When (ns).
+    pub timestamp: u64,
+    /// The transition taken.
+    pub transition: Transition,
+    /// The state before.
+    pub start_state: LifecycleState,
+    /// The state after.
+    pub goal_state: LifecycleState,
+}
+ros_message!(
+    TransitionEvent,
+    "lifecycle_msgs",
+    [
+        ("timestamp", "uint64"),
+        ("transition", "lifecycle_msgs/Transition"),
+        ("start_state", "lifecycle_msgs/State"),
+        ("goal_state", "lifecycle_msgs/State"),
+    ]
+);
+
 #[cfg(test)]
 mod tests {
     use super::*;

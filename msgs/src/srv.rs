@@ -1,8 +1,10 @@
-//! Service types (`std_srvs`), request and response in `.srv` field order so their CDR
+//! Service types (`std_srvs`, `lifecycle_msgs`), request and response in `.srv` field order so their CDR
 //! encoding is the ROS one. An empty request carries rosidl's placeholder byte
 //! (`structure_needs_at_least_one_member`), as every ROS implementation puts on the wire.
 
 use serde::{Deserialize, Serialize};
+
+use crate::msg::{LifecycleState, Transition, TransitionDescription};
 
 /// A ROS service type: its package and name (`std_srvs`, `SetBool`).
 pub trait RosService {
@@ -20,7 +22,22 @@ pub trait RosService {
     }
 }
 
-/// An empty request (std_srvs/srv/Trigger).
+/// A service type: a unit struct naming its package and its request and response types.
+macro_rules! ros_service {
+    ($(#[$doc:meta])* $name:ident, $pkg:literal, $req:ty, $resp:ty) => {
+        $(#[$doc])*
+        #[derive(Debug, Clone, Copy)]
+        pub struct $name;
+        impl RosService for $name {
+            type Request = $req;
+            type Response = $resp;
+            const PACKAGE: &'static str = $pkg;
+            const NAME: &'static str = stringify!($name);
+        }
+    };
+}
+
+/// An empty request (std_srvs/srv/Trigger, lifecycle_msgs/srv/GetState, ...).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct TriggerRequest {
     /// rosidl's placeholder member of an empty structure.
@@ -38,15 +55,13 @@ pub struct TriggerResponse {
 }
 impl ros2_client::Message for TriggerResponse {}
 
-/// std_srvs/srv/Trigger: do something, say whether it was done.
-#[derive(Debug, Clone, Copy)]
-pub struct Trigger;
-impl RosService for Trigger {
-    type Request = TriggerRequest;
-    type Response = TriggerResponse;
-    const PACKAGE: &'static str = "std_srvs";
-    const NAME: &'static str = "Trigger";
-}
+ros_service!(
+    /// std_srvs/srv/Trigger: do something, say whether it was done.
+    Trigger,
+    "std_srvs",
+    TriggerRequest,
+    TriggerResponse
+);
 
 /// std_srvs/srv/SetBool request.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -56,12 +71,66 @@ pub struct SetBoolRequest {
 }
 impl ros2_client::Message for SetBoolRequest {}
 
-/// std_srvs/srv/SetBool: set something on or off, say whether it was done.
-#[derive(Debug, Clone, Copy)]
-pub struct SetBool;
-impl RosService for SetBool {
-    type Request = SetBoolRequest;
-    type Response = TriggerResponse;
-    const PACKAGE: &'static str = "std_srvs";
-    const NAME: &'static str = "SetBool";
+ros_service!(
+    /// std_srvs/srv/SetBool: set something on or off, say whether it was done.
+    SetBool,
+    "std_srvs",
+    SetBoolRequest,
+    TriggerResponse
+);
+
+/// lifecycle_msgs/srv/GetState response.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GetStateResponse {
+    /// The node's state.
+    pub current_state: LifecycleState,
 }
+impl ros2_client::Message for GetStateResponse {}
+
+ros_service!(
+    /// lifecycle_msgs/srv/GetState: a managed node's state.
+    GetState,
+    "lifecycle_msgs",
+    TriggerRequest,
+    GetStateResponse
+);
+
+/// lifecycle_msgs/srv/ChangeState request.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ChangeStateRequest {
+    /// The transition to take (by id, or by label with id 0).
+    pub transition: Transition,
+}
+impl ros2_client::Message for ChangeStateRequest {}
+
+/// lifecycle_msgs/srv/ChangeState response.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ChangeStateResponse {
+    /// Whether the transition was taken.
+    pub success: bool,
+}
+impl ros2_client::Message for ChangeStateResponse {}
+
+ros_service!(
+    /// lifecycle_msgs/srv/ChangeState: take a transition.
+    ChangeState,
+    "lifecycle_msgs",
+    ChangeStateRequest,
+    ChangeStateResponse
+);
+
+/// lifecycle_msgs/srv/GetAvailableTransitions response.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GetAvailableTransitionsResponse {
+    /// The transitions from the current state.
+    pub available_transitions: Vec<TransitionDescription>,
+}
+impl ros2_client::Message for GetAvailableTransitionsResponse {}
+
+ros_service!(
+    /// lifecycle_msgs/srv/GetAvailableTransitions: what may be taken from the current state.
+    GetAvailableTransitions,
+    "lifecycle_msgs",
+    TriggerRequest,
+    GetAvailableTransitionsResponse
+);

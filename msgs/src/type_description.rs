@@ -150,6 +150,10 @@ pub fn known_types() -> &'static [KnownType] {
             MeshFile,
             Marker,
             MarkerArray,
+            LifecycleState,
+            Transition,
+            TransitionDescription,
+            TransitionEvent,
         ]
         .to_vec();
         v.push(KnownType {

@@ -243,10 +243,23 @@ impl RosNode {
         &self,
         name: &str,
     ) -> Result<ros2_client::dds::rustdds::Topic, RosError> {
-        let resolved = topic_name(&self.setup.args, &self.setup.namespace, name)?;
+        let resolved = self.resolve(name)?;
         self.node
             .create_topic(&resolved, M::message_type_name(), &qos::default())
             .map_err(dds_err(format!("topic {name}")))
+    }
+
+    /// A topic or service name as the node uses it: `~/x` is the node's private `<node>/x`;
+    /// then remapped, in the namespace.
+    fn resolve(&self, name: &str) -> Result<ros2_client::Name, RosError> {
+        let private = name
+            .strip_prefix("~/")
+            .map(|rest| format!("{}/{rest}", self.setup.name));
+        topic_name(
+            &self.setup.args,
+            &self.setup.namespace,
+            private.as_deref().unwrap_or(name),
+        )
     }
 
     /// A server of service `S` on `name`: `~/x` is the node's private `<node>/x`; remapped,
@@ -255,14 +268,7 @@ impl RosNode {
         &mut self,
         name: &str,
     ) -> Result<ros2_client::Server<S::Request, S::Response>, RosError> {
-        let private = name
-            .strip_prefix("~/")
-            .map(|rest| format!("{}/{rest}", self.setup.name));
-        let resolved = topic_name(
-            &self.setup.args,
-            &self.setup.namespace,
-            private.as_deref().unwrap_or(name),
-        )?;
+        let resolved = self.resolve(name)?;
         let qos = qos::service();
         self.node
             .create_server::<S::Request, S::Response>(
@@ -275,7 +281,8 @@ impl RosNode {
             .map_err(dds_err(format!("service {name}")))
     }
 
-    /// A publisher of `M` on topic `name` (remapped, in the namespace), default QoS.
+    /// A publisher of `M` on topic `name` (`~/x`: the node's private `<node>/x`; remapped, in
+    /// the namespace), default QoS.
     pub fn publisher<M: RosMessage>(
         &mut self,
         name: &str,

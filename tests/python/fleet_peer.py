@@ -377,6 +377,91 @@ def scenario_estop(bin_dir, params):
     return out
 
 
+def scenario_lifecycle(bin_dir, params):
+    """The joint bridge as a managed node, driven as `ros2 lifecycle` drives one: mid-walk,
+    get_state and get_available_transitions; deactivate (by id) holds while the walk goes on
+    commanding; configure, not available from inactive, is refused; activate (by label
+    only) moves the joints again; shutdown ends the node by itself. Every transition
+    taken is recorded from ~/transition_event. Then a bridge started with autostart false
+    waits unconfigured until configured and activated."""
+    from lifecycle_msgs.msg import Transition, TransitionEvent
+    from lifecycle_msgs.srv import ChangeState, GetAvailableTransitions, GetState
+    procs, peer, out = start_flowing(bin_dir, params)
+    if not out["flowing"]:
+        return out
+    events = []
+    peer.node.create_subscription(TransitionEvent, "/joint_bridge/transition_event", lambda m: events.append(
+        {"id": m.transition.id, "label": m.transition.label, "start": m.start_state.label, "goal": m.goal_state.label}), 10)
+
+    def state(attempt=30.0):
+        # A query, safe to ask again: a fresh bridge may take seconds to match a client
+        # created before it started (RustDDS discovery), and a lost reply is asked again.
+        end = time.monotonic() + 30.0
+        while time.monotonic() < end:
+            r = peer.call(GetState, "/joint_bridge/get_state", GetState.Request(), timeout=attempt)
+            if r is not None:
+                return r.current_state.label
+        return None
+
+    def change(id_, label=""):
+        r = peer.call(ChangeState, "/joint_bridge/change_state",
+                      ChangeState.Request(transition=Transition(id=id_, label=label)))
+        return None if r is None else bool(r.success)
+
+    def available():
+        r = peer.call(GetAvailableTransitions, "/joint_bridge/get_available_transitions",
+                      GetAvailableTransitions.Request())
+        return None if r is None else [[t.transition.id, t.transition.label, t.goal_state.label]
+                                       for t in r.available_transitions]
+
+    peer.walk(0)  # until stopped
+    first = peer.states[-1]["position"]
+    out["moving"] = peer.spin(30.0, lambda: peer.states[-1]["position"] != first)
+    peer.spin(1.5)
+    out["state_first"] = state()
+    out["available_active"] = available()
+    out["deactivate"] = change(Transition.TRANSITION_DEACTIVATE)
+    out["deactivate_answered_t"] = time.time()  # the clock of the joint_states stamps
+    out["state_deactivated"] = state()
+    out["available_inactive"] = available()
+    out["configure_from_inactive"] = change(Transition.TRANSITION_CONFIGURE)
+    peer.spin(2.0)
+    out["activate_t"] = time.time()
+    out["activate"] = change(0, "activate")
+    out["activate_answered_t"] = time.time()
+    out["state_activated"] = state()
+    peer.spin(1.5)
+    out["shutdown_t"] = time.time()
+    out["shutdown"] = change(Transition.TRANSITION_ACTIVE_SHUTDOWN)
+    bridge = procs["joint_bridge"]
+    end = time.monotonic() + 10.0
+    while bridge.poll() is None and time.monotonic() < end:
+        peer.spin(0.1)
+    out["bridge_exited_by_itself"] = bridge.poll() is not None
+    peer.spin(0.5)
+    out.update(states=peer.states, rosout=peer.rosout, events=list(events))
+    out["exits"] = stop_nodes(procs)
+    # A bridge for a lifecycle manager: autostart false.
+    bridge_only = start_nodes(bin_dir, params, {"joint_bridge": ["-p", "autostart:=false"]}, only=["joint_bridge"])
+    del peer.__dict__["clients"]
+    rosout_from = len(peer.rosout)
+    n_states = len(peer.states)
+    out["manual_state_first"] = state(attempt=2.0)
+    out["manual_available"] = available()
+    peer.spin(1.0)
+    out["manual_states_unconfigured"] = len(peer.states) - n_states
+    out["manual_configure"] = change(Transition.TRANSITION_CONFIGURE)
+    out["manual_state_configured"] = state()
+    n_states = len(peer.states)
+    peer.spin(1.0)
+    out["manual_states_inactive"] = len(peer.states) - n_states
+    out["manual_activate"] = change(Transition.TRANSITION_ACTIVATE)
+    out["manual_state_activated"] = state()
+    out["manual_rosout"] = [r for r in peer.rosout[rosout_from:] if r["name"] == "joint_bridge"]
+    out["manual_exits"] = stop_nodes(bridge_only)
+    return out
+
+
 def scenario_launch(bin_dir, params):
     biped = os.path.join(bin_dir, "biped")
     log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test")
@@ -604,6 +689,7 @@ def main():
     params = sys.argv[3] if len(sys.argv) > 3 else None
     result = {"walk": scenario_walk, "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
               "watchdog": scenario_watchdog, "estop": scenario_estop,
+              "lifecycle": scenario_lifecycle,
               "launch": scenario_launch,
               "sim": scenario_sim}[scenario](bin_dir, params)
     json.dump(result, sys.stdout)

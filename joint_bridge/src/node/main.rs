@@ -21,6 +21,12 @@
 //! Services: `~/estop` and `~/reset` (std_srvs/srv/Trigger: hold and ignore commands, then
 //! take them again) and `~/set_torque` (std_srvs/srv/SetBool), answered between ticks.
 //!
+//! A managed (lifecycle) node: `~/get_state`, `~/change_state`, `~/get_available_transitions`
+//! (lifecycle_msgs/srv) and `~/transition_event`; inactive holds with torque on and ignores
+//! commands, shutdown holds then turns the torque off and ends the node. With `autostart`
+//! (true) the node configures and activates itself at start; with `autostart:=false` it waits
+//! unconfigured (torque off) for a lifecycle manager.
+//!
 //! With a serial board the node also publishes `/diagnostics`
 //! (diagnostic_msgs/msg/DiagnosticArray, once a second): the board's state and wire
 //! counters (timeouts, corrupted replies, reconnections, servo error bits).
@@ -29,6 +35,7 @@
 //! `lockstep_wait_s` of wall time) for the `joint_commands` stamped t, so a lockstep simulator
 //! gets the answer to every tick computed from that tick's command.
 
+mod lifecycle;
 mod serial_setup;
 mod sim_link;
 
@@ -40,18 +47,21 @@ use std::time::{Duration, Instant};
 use biped_msgs::msg::{DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue};
 use biped_msgs::srv::{SetBool, SetBoolRequest, Trigger, TriggerRequest, TriggerResponse};
 use ik_solver::BipedModel;
+use joint_bridge::managed::ManagedState;
 use joint_bridge::{
     Backend, Backoff, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend,
-    SagCompensation, TimeoutAction,
+    Operator, SagCompensation, TimeoutAction,
 };
 use node_runtime::{NodeSetup, RosNode, Tick, TickSource};
 use ros2_client::ParameterValue;
 use smol::future::FutureExt as _;
 
+use crate::lifecycle::LifecycleServices;
 use crate::serial_setup::{SerialParams, in_range};
 use crate::sim_link::{SimLink, SimLinkHandle};
 
-const PARAMS: [&str; 13] = [
+const PARAMS: [&str; 14] = [
+    "autostart",
     "robot_description_file",
     "leg_map_file",
     "backend",
@@ -94,6 +104,7 @@ fn run() -> anyhow::Result<()> {
     let robot_file = setup.str_param("robot_description_file", "")?;
     let leg_map_file = setup.str_param("leg_map_file", "")?;
     let backend_name = setup.str_param("backend", "mock")?;
+    let autostart = setup.bool_param("autostart", true)?;
     let rate_hz = setup.f64_param("rate_hz", 100.0)?;
     let timeout_s = setup.f64_param("watchdog_timeout_s", 0.25)?;
     let action_name = setup.str_param("watchdog_action", "hold")?;
@@ -220,6 +231,7 @@ fn run() -> anyhow::Result<()> {
             ParameterValue::Double(default_velocity_rad_s),
         ),
         ("max_tick_s".to_string(), ParameterValue::Double(max_tick_s)),
+        ("autostart".to_string(), ParameterValue::Boolean(autostart)),
     ]);
     declared.extend(serial.declared());
     let mut ros = RosNode::start(setup, &declared, Some(node_runtime::read_at_startup()))?;
@@ -257,6 +269,14 @@ fn run() -> anyhow::Result<()> {
         };
     let diagnostics = ros.publisher::<DiagnosticArray>("/diagnostics")?;
     let operator = OperatorServices::new(&mut ros)?;
+    let lifecycle = LifecycleServices::new(
+        &mut ros,
+        if autostart {
+            ManagedState::Active
+        } else {
+            ManagedState::Unconfigured
+        },
+    )?;
     let mut bridge = JointBridge::new(
         backend,
         joints.clone(),
@@ -281,14 +301,19 @@ fn run() -> anyhow::Result<()> {
             not_driven.join(", ")
         ));
     }
-    match bridge.start() {
-        Ok(()) => {}
-        // A serial board retries with backoff (port absent, board unpowered...).
-        Err(e) if reconnect.is_some() => ros.error(&format!(
-            "backend {what}: {e}; retrying every {}..{} s",
-            serial.retry_first_s, serial.retry_max_s
-        )),
-        Err(e) => anyhow::bail!("backend {backend_name}: {e}"),
+    if !autostart {
+        // Unconfigured, torque off: the lifecycle manager configures and activates.
+        bridge.hold(Operator::Inactive);
+    } else {
+        match bridge.start() {
+            Ok(()) => {}
+            // A serial board retries with backoff (port absent, board unpowered...).
+            Err(e) if reconnect.is_some() => ros.error(&format!(
+                "backend {what}: {e}; retrying every {}..{} s",
+                serial.retry_first_s, serial.retry_max_s
+            )),
+            Err(e) => anyhow::bail!("backend {backend_name}: {e}"),
+        }
     }
     let compensation = if kp > 0.0 {
         format!("sag compensation for {kp} N·m/rad servos")
@@ -302,7 +327,9 @@ fn run() -> anyhow::Result<()> {
     } else {
         format!("joint_states carries commanded positions (the {what} backend cannot measure)")
     };
-    let status = if bridge.state() == Lifecycle::Active {
+    let status = if !autostart {
+        "unconfigured (autostart false: waiting for configure on ~/change_state)"
+    } else if bridge.state() == Lifecycle::Active {
         "active"
     } else {
         "not connected yet (retrying)"
@@ -329,6 +356,7 @@ fn run() -> anyhow::Result<()> {
     // One control period at t: watchdog, write, read back, publish.
     let do_tick = |bridge: &mut JointBridge<Box<dyn Backend>>, t_s: f64| {
         operator.serve(&ros, bridge);
+        lifecycle.serve(&ros, bridge);
         let (reading, events) = bridge.tick(t_s);
         report(events);
         if let Some(link) = &link
@@ -358,8 +386,10 @@ fn run() -> anyhow::Result<()> {
                 }
             }
             (Ok(_), None) => {}
-            // While the bridge retries a failed backend, the retries say why.
-            (Err(_), _) if bridge.state() == Lifecycle::Error => {}
+            // While the bridge retries a failed backend, the retries say why; unconfigured,
+            // there is nothing to read.
+            (Err(_), _) if matches!(bridge.state(), Lifecycle::Error | Lifecycle::Unconfigured) => {
+            }
             (Err(e), _) => ros.error_throttled("backend read", &format!("backend read: {e}")),
         }
         // Once a second, for backends that have diagnostics (the serial boards).
@@ -394,7 +424,7 @@ fn run() -> anyhow::Result<()> {
     let t0 = Instant::now();
     smol::block_on(executor.run(async {
         if !simulated {
-            while !stop.load(Ordering::SeqCst) {
+            while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
                 let _ = ticks.next().await;
                 let t = t0.elapsed().as_secs_f64();
                 while let Some(cmd) = take_command(&sub, &ros) {
@@ -414,7 +444,7 @@ fn run() -> anyhow::Result<()> {
         let mut clock_s = 0.0;
         let mut newest_command_s = f64::NEG_INFINITY;
         let wait = Duration::from_secs_f64(lockstep_wait_s);
-        while !stop.load(Ordering::SeqCst) {
+        while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
             let wake = async {
                 Wake::Command(match sub.async_take().await {
                     Ok((m, _)) => Some(m),
