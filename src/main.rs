@@ -75,6 +75,13 @@ enum Command {
         log_dir: PathBuf,
         #[command(flatten)]
         serial: launch::SerialArgs,
+        /// Seconds before a node that died is restarted (doubled for each death soon after
+        /// a restart, up to 30 s).
+        #[arg(long, value_name = "S", default_value_t = 1.0, value_parser = respawn_delay)]
+        respawn_delay: f64,
+        /// Do not restart nodes: any node's exit stops the fleet.
+        #[arg(long)]
+        no_respawn: bool,
     },
     /// Walk the robot in MuJoCo: the ROS 2 fleet and the simulator in lockstep on simulated
     /// time (DDS on this host unless ROS_AUTOMATIC_DISCOVERY_RANGE says otherwise); writes
@@ -218,6 +225,18 @@ enum Command {
         #[arg(long, conflicts_with = "plots")]
         no_plots: bool,
     },
+}
+
+/// `--respawn-delay`: a finite number of seconds in [0.1, 60].
+fn respawn_delay(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|e| format!("`{s}` is not a number of seconds: {e}"))?;
+    if (0.1..=60.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} s is out of range [0.1, 60] s"))
+    }
 }
 
 fn load_model(args: &RobotArgs) -> anyhow::Result<BipedModel> {
@@ -372,6 +391,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             ns,
             log_dir,
             serial,
+            respawn_delay,
+            no_respawn,
         } => launch::launch(&launch::LaunchOptions {
             backend,
             robot,
@@ -382,6 +403,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             node_params: Vec::new(),
             env: Vec::new(),
             serial,
+            respawn: (!no_respawn).then(|| launch::Respawn::with_delay(respawn_delay)),
         }),
         Command::Walk {
             steps,

@@ -906,3 +906,68 @@ fn an_rclpy_lifecycle_client_deactivates_activates_and_shuts_down_the_joint_brid
         v["manual_exits"]
     );
 }
+
+/// `biped launch` supervises: `kill -9` of the IK node mid-walk, then of the joint bridge.
+/// The launcher restarts each (after `--respawn-delay`) while the others run on; while the
+/// IK node is away the bridge holds the joints still (its watchdog), though the planner goes
+/// on walking; with each back, commands and states flow again and the walk moves the joints.
+#[test]
+fn biped_launch_restarts_a_killed_node_while_the_bridge_holds() {
+    let v = peer("supervise", 89);
+    assert_walk_moved(&v);
+    let stdout = v["launcher_stdout"].as_str().unwrap_or_default();
+    let stderr = v["launcher_stderr"].as_str().unwrap_or_default();
+    for name in ["ik_solver", "joint_bridge"] {
+        assert_eq!(
+            v[format!("{name}_restarted")],
+            true,
+            "{name} not restarted: {stdout}\n{stderr}"
+        );
+        assert_eq!(
+            v[format!("{name}_flowing_again")],
+            true,
+            "{name}: no commands and states after its restart"
+        );
+        assert!(
+            stdout.contains(&format!("restarted {name} (pid ")),
+            "{stdout}"
+        );
+        assert!(
+            stderr.contains(&format!("{name} exited (signal: 9")),
+            "{stderr}"
+        );
+    }
+    assert_eq!(v["launcher_alive"], true, "the launcher stopped: {stderr}");
+    assert_eq!(v["launcher_returncode"], 0, "{stderr}");
+    // The IK node away: from its kill plus the watchdog (0.25 s) and the braking (0.06 s)
+    // until it is back, the joints hold still while the planner walks on.
+    let states = v["states"].as_array().unwrap();
+    let (pos, t) = (state_positions, state_t);
+    let (killed, back) = (
+        v["ik_solver_kill_t"].as_f64().unwrap(),
+        v["ik_solver_restart_t"].as_f64().unwrap(),
+    );
+    let held: Vec<&Value> = states
+        .iter()
+        .filter(|s| t(s) > killed + 0.4 && t(s) < back)
+        .collect();
+    assert!(held.len() > 20, "joint_states kept coming: {}", held.len());
+    for s in &held {
+        assert_eq!(
+            pos(s),
+            pos(held[0]),
+            "joint moved at t = {} without the IK node",
+            t(s)
+        );
+    }
+    assert!(rosout_has(&v, "joint_bridge", &["watchdog", "holding"]));
+    // After each restart the walk moves the joints again.
+    for name in ["ik_solver", "joint_bridge"] {
+        let from = v[format!("{name}_restart_t")].as_f64().unwrap();
+        let after: Vec<&Value> = states.iter().filter(|s| t(s) > from).collect();
+        assert!(
+            after.windows(2).any(|w| pos(w[0]) != pos(w[1])),
+            "the joints never moved after {name} came back"
+        );
+    }
+}

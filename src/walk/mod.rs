@@ -213,6 +213,8 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         node_params,
         env,
         serial: Default::default(),
+        // A walk is a measurement: a node that dies fails it.
+        respawn: None,
     })?;
     for node in [
         "joint_bridge",

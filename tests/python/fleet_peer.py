@@ -513,7 +513,11 @@ def scenario_launch(bin_dir, params):
     out["pids_after_kill"] = pids2
     out["alive_after_kill"] = still
     for pid in still:
-        os.kill(pid, signal.SIGKILL)
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            out[f"{name}_gone_before_kill"] = pid
+            break
     return out
 
 
@@ -568,6 +572,70 @@ def stop_launcher(launcher, out):
     out["launcher_returncode"] = launcher.returncode
     out["launcher_stderr"] = stderr[-2000:]
     return stdout
+
+
+def scenario_supervise(bin_dir, params):
+    """`biped launch` supervising: mid-walk, `kill -9` of the IK node, later of the joint
+    bridge; each comes back (the launcher restarts it) while the other nodes run on. Records
+    joint_states, the kill times and what the launcher printed."""
+    import threading
+    biped = os.path.join(bin_dir, "biped")
+    log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test") + "-supervise"
+    launcher = subprocess.Popen([biped, "launch", "--log-dir", log_dir, "--respawn-delay", "0.5"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines = []
+    threading.Thread(target=lambda: [lines.append(line) for line in launcher.stdout], daemon=True).start()
+
+    def pid_of(name, nth=0):
+        found = [int(line.split("(pid ")[1].split(",")[0].split(")")[0]) for line in list(lines)
+                 if f" {name} (pid " in line and ("started" in line or "restarted" in line)]
+        return found[nth] if len(found) > nth else None
+
+    peer = Peer()
+    out = {"nodes_seen": peer.wait_for_nodes(30.0)}
+    out["matched"] = peer.wait_for_subscribers(peer.walk_pub)
+    out["flowing"] = peer.wait_for_flow()
+    out["flow_diag"] = getattr(peer, "flow_diag", None)
+
+    def stop():
+        # Ctrl-C, as a user would; stdout is read by the thread above.
+        launcher.send_signal(signal.SIGINT)
+        try:
+            launcher.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            launcher.kill()
+            launcher.wait()
+        out["launcher_returncode"] = launcher.returncode
+        out["launcher_stderr"] = launcher.stderr.read()[-3000:]
+        time.sleep(0.2)
+        out["launcher_stdout"] = "".join(lines)
+
+    if not out["flowing"]:
+        stop()
+        return out
+    peer.walk(0)  # until stopped
+    first = peer.states[-1]["position"]
+    out["moving"] = peer.spin(30.0, lambda: peer.states[-1]["position"] != first)
+    peer.spin(1.0)
+    for name in ["ik_solver", "joint_bridge"]:
+        pid = pid_of(name)
+        out[f"{name}_kill_t"] = time.time()  # the clock of the joint_states stamps
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            out[f"{name}_gone_before_kill"] = pid
+            break
+        out[f"{name}_restarted"] = peer.spin(20.0, lambda: pid_of(name, 1) is not None)
+        out[f"{name}_restart_t"] = time.time()
+        n_commands = len(peer.commands)
+        # Commands and states flow again, from the restarted node.
+        out[f"{name}_flowing_again"] = peer.spin(20.0, lambda: len(peer.commands) > n_commands + 50
+                                                 and peer.states[-1]["t"] > out[f"{name}_restart_t"])
+        peer.spin(1.5)
+    out["launcher_alive"] = launcher.poll() is None
+    out.update(states=peer.states, rosout=[r for r in peer.rosout if r["level"] >= 30])
+    stop()
+    return out
 
 
 def scenario_sim(bin_dir, params):
@@ -689,7 +757,7 @@ def main():
     params = sys.argv[3] if len(sys.argv) > 3 else None
     result = {"walk": scenario_walk, "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
               "watchdog": scenario_watchdog, "estop": scenario_estop,
-              "lifecycle": scenario_lifecycle,
+              "lifecycle": scenario_lifecycle, "supervise": scenario_supervise,
               "launch": scenario_launch,
               "sim": scenario_sim}[scenario](bin_dir, params)
     json.dump(result, sys.stdout)
