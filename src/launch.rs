@@ -386,8 +386,14 @@ impl Fleet {
                 .with_context(|| format!("cannot write {}", log.display()))?;
         }
         let err = file.try_clone()?;
+        let mut args = self.ros_args(name)?;
+        if restart > 0 && name == "gait_planner" {
+            // Restarted mid-walk, the planner must not stand the robot up from wherever it
+            // is: it holds the measured pose until the robot stands (gait_planner README).
+            args.extend(["-p".to_string(), "stand_at_start:=false".to_string()]);
+        }
         let child = Command::new(&bin)
-            .args(self.ros_args(name)?)
+            .args(args)
             .envs(self.options.env.iter().map(|(k, v)| (k, v)))
             .env(
                 node_runtime::LAUNCH_PARENT_ENV,

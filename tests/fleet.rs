@@ -971,3 +971,83 @@ fn biped_launch_restarts_a_killed_node_while_the_bridge_holds() {
         );
     }
 }
+
+/// The simulated robot (MuJoCo, real time) under `biped launch --backend sim`, mid-walk: an
+/// rclpy operator's `~/estop` holds it standing and at rest until `~/reset`; then `kill -9`
+/// of the IK node, the joint bridge and the planner in turn, each restarted by the
+/// launcher: the robot never falls, and after the planner's restart it stands still where
+/// it was (the restarted planner holds the measured pose instead of commanding its standing
+/// pose from mid-step, which threw the robot over before) and refuses a walk, saying why.
+#[test]
+fn the_simulated_robot_stands_through_an_estop_and_each_node_killed_mid_walk() {
+    let v = peer("sim_kill", 91);
+    assert_eq!(v["nodes_seen"], true);
+    assert_eq!(v["flowing"], true, "no joint_states or base pose");
+    assert_eq!(v["walking"], true, "the walk never started");
+    let stderr = v["launcher_stderr"].as_str().unwrap_or_default();
+    for k in [
+        "estop",
+        "reset",
+        "ik_solver_restarted",
+        "joint_bridge_restarted",
+        "gait_planner_restarted",
+    ] {
+        assert_eq!(v[k], true, "{k}: {stderr}");
+    }
+    assert_eq!(v["launcher_returncode"], 0, "{stderr}");
+    let events: std::collections::BTreeMap<String, f64> = v["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| (e[0].as_str().unwrap().to_owned(), e[1].as_f64().unwrap()))
+        .collect();
+    let base = v["base"].as_array().unwrap();
+    let f = |p: &Value, k: &str| p[k].as_f64().unwrap();
+    // Tilt from the base's orientation: 2 asin(|(qx, qy)|).
+    let tilt_deg = |p: &Value| (2.0 * f(p, "qx").hypot(f(p, "qy")).min(1.0).asin()).to_degrees();
+    let between = |a: f64, b: f64| -> Vec<&Value> {
+        base.iter()
+            .filter(|p| f(p, "t") >= a && f(p, "t") < b)
+            .collect()
+    };
+    // Standing throughout: the base above 80 % of its walking height, tilted < 20 deg.
+    let walking_z = 0.213;
+    for p in between(events["estop"], events["end"]) {
+        assert!(
+            f(p, "z") > 0.8 * walking_z && tilt_deg(p) < 20.0,
+            "fallen at t = {}: z {} m, tilt {} deg",
+            f(p, "t"),
+            f(p, "z"),
+            tilt_deg(p)
+        );
+    }
+    let at_rest = |what: &str, ps: &[&Value]| {
+        assert!(ps.len() > 50, "{what}: {} base poses", ps.len());
+        let (x0, y0) = (f(ps[0], "x"), f(ps[0], "y"));
+        for p in ps {
+            let d = (f(p, "x") - x0).hypot(f(p, "y") - y0);
+            assert!(
+                d < 0.005,
+                "{what}: the base moved {d} m by t = {}",
+                f(p, "t")
+            );
+            assert!(tilt_deg(p) < 5.0, "{what}: tilt {} deg", tilt_deg(p));
+        }
+    };
+    // Held by the e-stop: at rest from 0.5 s after the call until the reset.
+    at_rest("e-stop", &between(events["estop"] + 0.5, events["reset"]));
+    // The planner killed and back: the robot stands still where it was.
+    at_rest(
+        "planner restarted",
+        &between(events["restarted gait_planner"] + 1.0, events["end"]),
+    );
+    assert!(rosout_has(
+        &v,
+        "gait_planner",
+        &[
+            "not in the planner's standing pose",
+            "holding the measured pose"
+        ]
+    ));
+    assert!(rosout_has(&v, "gait_planner", &["walk_command refused"]));
+}

@@ -457,6 +457,20 @@ impl RosMessage for StringMsg {
     const TYPE_NAME: &'static str = "std_msgs/msg/String";
 }
 
+/// std_msgs/msg/Bool.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BoolMsg {
+    /// The value.
+    pub data: bool,
+}
+impl ros2_client::Message for BoolMsg {}
+impl RosMessage for BoolMsg {
+    const PACKAGE: &'static str = "std_msgs";
+    const NAME: &'static str = "Bool";
+    const FIELDS: &'static [(&'static str, &'static str)] = &[("data", "boolean")];
+    const TYPE_NAME: &'static str = "std_msgs/msg/Bool";
+}
+
 /// biped_msgs/msg/GaitPhase: where the walk is (msg/GaitPhase.msg).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct GaitPhase {

@@ -134,6 +134,7 @@ pub fn known_types() -> &'static [KnownType] {
             JointState,
             Clock,
             StringMsg,
+            BoolMsg,
             GaitPhase,
             AnkleTargets,
             WalkCommand,

@@ -316,6 +316,18 @@ impl RosNode {
             .map_err(dds_err(format!("subscription {name}")))
     }
 
+    /// A subscription to latched state `M` on topic `name` (reliable, transient local, keep
+    /// last 1): it gets the last message published before it joined.
+    pub fn latched_subscription<M: RosMessage + 'static>(
+        &mut self,
+        name: &str,
+    ) -> Result<ros2_client::Subscription<M>, RosError> {
+        let topic = self.topic::<M>(name)?;
+        self.node
+            .create_subscription::<M>(&topic, Some(qos::latched()))
+            .map_err(dds_err(format!("subscription {name}")))
+    }
+
     /// The next message of `sub` (topic `topic`), or `None` after `timeout` so that the
     /// caller can look at its stop flag. An unreadable message is logged, naming the topic,
     /// and skipped (`None`).
@@ -365,8 +377,17 @@ impl RosNode {
 
     /// Logs an error at most once a second per `key`, saying how many were held back.
     pub fn error_throttled(&self, key: &str, msg: &str) {
+        self.throttled(key, msg, Self::error);
+    }
+
+    /// Logs a warning at most once a second per `key`, saying how many were held back.
+    pub fn warn_throttled(&self, key: &str, msg: &str) {
+        self.throttled(key, msg, Self::warn);
+    }
+
+    fn throttled(&self, key: &str, msg: &str, log: fn(&Self, &str)) {
         let Ok(mut t) = self.throttled.lock() else {
-            return self.error(msg);
+            return log(self, msg);
         };
         let now = std::time::Instant::now();
         match t.get_mut(key) {
@@ -378,9 +399,12 @@ impl RosNode {
                 t.insert(key.to_owned(), (now, 0));
                 drop(t);
                 if held > 0 {
-                    self.error(&format!("{msg} ({held} more like it in the last second)"));
+                    log(
+                        self,
+                        &format!("{msg} ({held} more like it in the last second)"),
+                    );
                 } else {
-                    self.error(msg);
+                    log(self, msg);
                 }
             }
         }

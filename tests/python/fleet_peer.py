@@ -686,6 +686,87 @@ def scenario_sim(bin_dir, params):
     return out
 
 
+def scenario_sim_kill(bin_dir, params):
+    """The simulated robot in real time under `biped launch --backend sim`, mid-walk: an
+    operator's ~/estop (std_srvs/Trigger) then ~/reset; then `kill -9` of the IK node, of the
+    joint bridge and of the planner in turn, each restarted by the launcher. Records the
+    simulator's ground-truth base pose, with the peer's clock for every event."""
+    import threading
+    from geometry_msgs.msg import PoseStamped
+    from std_srvs.srv import Trigger
+    biped = os.path.join(bin_dir, "biped")
+    log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test") + "-sim-kill"
+    # The observer is up first, as in the sim scenario.
+    peer = Peer()
+    base = []
+    qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
+    peer.node.create_subscription(PoseStamped, "/sim/base_pose", lambda m: base.append(
+        {"t": peer.now(), "x": m.pose.position.x, "y": m.pose.position.y, "z": m.pose.position.z,
+         "qx": m.pose.orientation.x, "qy": m.pose.orientation.y}), qos)
+    peer.spin(1.0)
+    launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--log-dir", log_dir,
+                                 "--respawn-delay", "0.5"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    lines = []
+    threading.Thread(target=lambda: [lines.append(line) for line in launcher.stdout], daemon=True).start()
+
+    def pid_of(name, nth=0):
+        found = [int(line.split("(pid ")[1].split(",")[0].split(")")[0]) for line in list(lines)
+                 if f" {name} (pid " in line and ("started" in line or "restarted" in line)]
+        return found[nth] if len(found) > nth else None
+
+    global NODES
+    NODES = NODES + ["sim_bridge"]
+    out = {"nodes_seen": peer.wait_for_nodes(60.0)}
+    out["flowing"] = peer.spin(60.0, lambda: len(peer.states) > 20 and len(base) > 20)
+    out["matched"] = peer.wait_for_subscribers(peer.walk_pub, 20.0)
+    events = out["events"] = []
+    if out["flowing"] and out["matched"]:
+        peer.walk(0)  # until stopped
+        out["walking"] = peer.spin(30.0, lambda: peer.phases and peer.phases[-1]["phase"] not in ("idle", "crouch"))
+        peer.spin(3.0)
+        events.append(["estop", peer.now()])
+        r = peer.call(Trigger, "/joint_bridge/estop", Trigger.Request())
+        out["estop"] = r is not None and r.success
+        peer.spin(4.0)
+        events.append(["reset", peer.now()])
+        r = peer.call(Trigger, "/joint_bridge/reset", Trigger.Request())
+        out["reset"] = r is not None and r.success
+        peer.spin(3.0)
+        for name in ["ik_solver", "joint_bridge", "gait_planner"]:
+            events.append([f"kill {name}", peer.now()])
+            os.kill(pid_of(name), signal.SIGKILL)
+            out[f"{name}_restarted"] = peer.spin(20.0, lambda: pid_of(name, 1) is not None)
+            events.append([f"restarted {name}", peer.now()])
+            peer.spin(5.0)
+        # The restarted planner holds: a walk asked now is refused, saying why. Asked again
+        # every second, as a user would, until the new planner (its endpoints discovered
+        # anew) answers.
+        def refused():
+            return any(r["name"].endswith("gait_planner") and "walk_command refused" in r["msg"]
+                       for r in peer.rosout)
+        for _ in range(15):
+            peer.walk(2)
+            if peer.spin(1.0, refused):
+                break
+        peer.spin(1.0)
+        events.append(["end", peer.now()])
+    out["base"] = base
+    out["phases_tail"] = peer.phases[-5:]
+    out["rosout"] = [r for r in peer.rosout if r["level"] >= 30]
+    launcher.send_signal(signal.SIGINT)
+    try:
+        launcher.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        launcher.kill()
+        launcher.wait()
+    out["launcher_returncode"] = launcher.returncode
+    out["launcher_stderr"] = launcher.stderr.read()[-3000:]
+    time.sleep(0.2)
+    out["launcher_stdout"] = "".join(lines)
+    return out
+
+
 def scenario_teleop_sim(bin_dir, params):
     """A teleop driving the six-joint robot in the simulator (`biped launch --backend sim
     --robot`, real time): Twists at 10 Hz to turn left, then, two swings later, to walk
@@ -758,6 +839,7 @@ def main():
     result = {"walk": scenario_walk, "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
               "watchdog": scenario_watchdog, "estop": scenario_estop,
               "lifecycle": scenario_lifecycle, "supervise": scenario_supervise,
+              "sim_kill": scenario_sim_kill,
               "launch": scenario_launch,
               "sim": scenario_sim}[scenario](bin_dir, params)
     json.dump(result, sys.stdout)

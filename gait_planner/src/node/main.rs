@@ -38,12 +38,13 @@ use std::sync::{Arc, Mutex};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{
-    AnkleTargets, Covariance6, GaitPhase, Header, JointState, MarkerArray, Odometry, Point, Pose,
-    PoseWithCovariance, TFMessage, Twist, TwistWithCovariance, Vector3, WalkCommand,
+    AnkleTargets, BoolMsg, Covariance6, GaitPhase, Header, JointState, MarkerArray, Odometry,
+    Point, Pose, PoseWithCovariance, TFMessage, Twist, TwistWithCovariance, Vector3, WalkCommand,
 };
+use gait_planner::standing::STANDING_TOLERANCE_RAD;
 use gait_planner::{
-    GaitParams, GaitPlanner, GaitSample, PhaseKind, StartQueue, Stride, Velocity, VelocityFollower,
-    WalkRequest,
+    GaitParams, GaitPlanner, GaitSample, PhaseKind, StandGuard, StartQueue, Stride, Velocity,
+    VelocityFollower, WalkRequest,
 };
 use ik_solver::{BipedModel, LegOdometry};
 use node_runtime::{NodeSetup, RosNode, TickSource};
@@ -53,6 +54,7 @@ const ROBOT_PARAM: &str = "robot_description_file";
 const LEG_MAP_PARAM: &str = "leg_map_file";
 /// Whether the odometry is also sent as the TF edge odom → base link.
 const ODOM_TF_PARAM: &str = "publish_odom_tf";
+const STAND_PARAM: &str = "stand_at_start";
 
 fn main() -> ExitCode {
     match run() {
@@ -70,7 +72,15 @@ fn gait_params(
 ) -> anyhow::Result<GaitParams> {
     let mut map = serde_norway::Mapping::new();
     for (k, v) in params {
-        if ![ROBOT_PARAM, LEG_MAP_PARAM, ODOM_TF_PARAM, "use_sim_time"].contains(&k.as_str()) {
+        if ![
+            ROBOT_PARAM,
+            LEG_MAP_PARAM,
+            ODOM_TF_PARAM,
+            STAND_PARAM,
+            "use_sim_time",
+        ]
+        .contains(&k.as_str())
+        {
             map.insert(serde_norway::Value::String(k.clone()), v.clone());
         }
     }
@@ -82,6 +92,7 @@ fn declared(
     robot_file: &str,
     leg_map_file: &str,
     odom_tf: bool,
+    stand_at_start: bool,
 ) -> anyhow::Result<std::collections::BTreeMap<String, ParameterValue>> {
     let mut out = std::collections::BTreeMap::new();
     if let serde_norway::Value::Mapping(m) = serde_norway::to_value(params)? {
@@ -99,6 +110,7 @@ fn declared(
         ParameterValue::String(leg_map_file.into()),
     );
     out.insert(ODOM_TF_PARAM.into(), ParameterValue::Boolean(odom_tf));
+    out.insert(STAND_PARAM.into(), ParameterValue::Boolean(stand_at_start));
     Ok(out)
 }
 
@@ -419,6 +431,7 @@ fn run() -> anyhow::Result<()> {
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
     let leg_map_file = setup.str_param(LEG_MAP_PARAM, "")?;
     let odom_tf = setup.bool_param(ODOM_TF_PARAM, true)?;
+    let stand_at_start = setup.bool_param(STAND_PARAM, true)?;
     let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     let mut params = gait_params(&setup.params)?;
     let mut planner = GaitPlanner::new(model.clone(), params.clone())?;
@@ -433,7 +446,7 @@ fn run() -> anyhow::Result<()> {
     let check = {
         let (walking, shared, model) = (walking.clone(), shared.clone(), model.clone());
         move |name: &str, value: &ParameterValue| -> Result<(), String> {
-            if name == ROBOT_PARAM || name == LEG_MAP_PARAM || name == ODOM_TF_PARAM {
+            if [ROBOT_PARAM, LEG_MAP_PARAM, ODOM_TF_PARAM, STAND_PARAM].contains(&name) {
                 return Err(format!(
                     "{name} is read at start-up; restart the node to change it"
                 ));
@@ -470,7 +483,7 @@ fn run() -> anyhow::Result<()> {
             tx.send(candidate).map_err(|e| e.to_string())
         }
     };
-    let declared = declared(&params, &robot_file, &leg_map_file, odom_tf)?;
+    let declared = declared(&params, &robot_file, &leg_map_file, odom_tf, stand_at_start)?;
     let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
     let stop = node_runtime::shutdown_flag()?;
     let phase_pub = ros.publisher::<GaitPhase>("gait/phase")?;
@@ -478,6 +491,7 @@ fn run() -> anyhow::Result<()> {
     let cmd_vel = ros.subscription::<Twist>("cmd_vel")?;
     let walk_cmd = ros.subscription::<WalkCommand>("walk_command")?;
     let joint_states = ros.subscription::<JointState>("joint_states")?;
+    let bridge_holding = ros.latched_subscription::<BoolMsg>("joint_bridge/holding")?;
     let odom_pub = ros.publisher::<Odometry>("odom")?;
     let markers_pub = ros.publisher::<MarkerArray>("gait/markers")?;
     let tf_pub = if odom_tf {
@@ -486,6 +500,8 @@ fn run() -> anyhow::Result<()> {
         None
     };
     let mut odom = OdomPublisher::new(&model);
+    // Not standing the robot up at start (a restart): hold the measured pose until it stands.
+    let mut guard = (!stand_at_start).then(|| StandGuard::new(STANDING_TOLERANCE_RAD));
     let mut ticks = TickSource::new(&mut ros, rate)?;
     let executor = ros.executor()?;
     let c = planner.config();
@@ -506,6 +522,9 @@ fn run() -> anyhow::Result<()> {
         let mut pending: StartQueue<WalkCommand> = StartQueue::default();
         let mut last_stamped: Option<WalkCommand> = None;
         let mut last_sent: Option<(GaitPhase, AnkleTargets)> = None;
+        // While the joint bridge holds (e-stop, torque off, inactive) the walk pauses: its
+        // time stands still, so it resumes where the joints were held, not ahead of them.
+        let (mut paused, mut paused_ticks) = (false, 0u64);
         while !stop.load(Ordering::SeqCst) {
             let Some(tick) = ticks.next().await else {
                 continue;
@@ -529,6 +548,14 @@ fn run() -> anyhow::Result<()> {
                         ros.info("parameters changed");
                     }
                     Err(e) => ros.warn(&format!("parameter change not applied: {e}")),
+                }
+            }
+            if let Some(why) = guard.as_ref().and_then(StandGuard::refusal) {
+                while let Ok(Some(_)) = walk_cmd.take() {
+                    ros.warn(&format!("walk_command refused: {why}"));
+                }
+                while let Ok(Some(_)) = cmd_vel.take() {
+                    ros.warn_throttled("cmd_vel refused", &format!("cmd_vel refused: {why}"));
                 }
             }
             while let Ok(Some((msg, _))) = walk_cmd.take() {
@@ -559,7 +586,20 @@ fn run() -> anyhow::Result<()> {
                     ros.warn(&w);
                 }
             }
-            let t_s = k as f64 / rate;
+            while let Ok(Some((h, _))) = bridge_holding.take() {
+                if h.data != paused {
+                    paused = h.data;
+                    ros.warn(if paused {
+                        "the joint bridge holds (e-stop, torque off or inactive): the walk pauses here"
+                    } else {
+                        "the joint bridge takes commands again: the walk goes on from where it paused"
+                    });
+                }
+            }
+            if paused {
+                paused_ticks += 1;
+            }
+            let t_s = k.saturating_sub(paused_ticks) as f64 / rate;
             while let Ok(Some((msg, _))) = cmd_vel.take() {
                 for w in commands.cmd_vel(&mut planner, &msg, t_s) {
                     ros.warn(&w);
@@ -583,8 +623,42 @@ fn run() -> anyhow::Result<()> {
                 ));
                 last_phase = Some((sample.phase, sample.step_index));
             }
-            let sent = to_msgs(&sample, now, &base_frame);
-            publish(&ros, &targets_pub, &phase_pub, &sent);
+            while let Ok(Some((js, _))) = joint_states.take() {
+                if let Some(w) = odom.joint_states(&model, &js) {
+                    ros.warn(&w);
+                }
+                if let Some(g) = &mut guard
+                    && let Some(said) =
+                        g.measured(&model, &sample.joints_rad, &js.name, &js.position)
+                {
+                    if g.clear() {
+                        ros.info(&said);
+                    } else {
+                        ros.warn(&said);
+                    }
+                }
+            }
+            let mut sent = to_msgs(&sample, now, &base_frame);
+            match guard.as_ref().filter(|g| !g.clear()) {
+                // Not standing (yet): the measured pose held, or (unknown) nothing at all.
+                Some(g) => {
+                    if let Some([l, r]) = g.held_targets() {
+                        let p = |v: &nalgebra::Vector3<f64>| Point {
+                            x: v.x,
+                            y: v.y,
+                            z: v.z,
+                        };
+                        sent.1.left_ankle = p(&l.ankle_in_hip_m);
+                        sent.1.right_ankle = p(&r.ankle_in_hip_m);
+                        sent.1.left_foot_yaw = l.foot_yaw_rad;
+                        sent.1.right_foot_yaw = r.foot_yaw_rad;
+                        publish(&ros, &targets_pub, &phase_pub, &sent);
+                    } else if let Err(e) = phase_pub.publish(sent.0.clone()) {
+                        ros.error_throttled("publish gait/phase", &format!("publish gait/phase: {e}"));
+                    }
+                }
+                None => publish(&ros, &targets_pub, &phase_pub, &sent),
+            }
             let header = Header {
                 stamp: now,
                 frame_id: "odom".into(),
@@ -595,11 +669,6 @@ fn run() -> anyhow::Result<()> {
                     "publish gait/markers",
                     &format!("publish gait/markers: {e}"),
                 );
-            }
-            while let Ok(Some((js, _))) = joint_states.take() {
-                if let Some(w) = odom.joint_states(&model, &js) {
-                    ros.warn(&w);
-                }
             }
             match odom.tick(
                 &model,

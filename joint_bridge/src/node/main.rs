@@ -21,6 +21,9 @@
 //! Services: `~/estop` and `~/reset` (std_srvs/srv/Trigger: hold and ignore commands, then
 //! take them again) and `~/set_torque` (std_srvs/srv/SetBool), answered between ticks.
 //!
+//! `~/holding` (std_msgs/msg/Bool, latched): true while an operator hold (e-stop, torque off,
+//! inactive) ignores joint commands; the planner pauses its walk meanwhile.
+//!
 //! A managed (lifecycle) node: `~/get_state`, `~/change_state`, `~/get_available_transitions`
 //! (lifecycle_msgs/srv) and `~/transition_event`; inactive holds with torque on and ignores
 //! commands, shutdown holds then turns the torque off and ends the node. With `autostart`
@@ -44,7 +47,7 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use biped_msgs::msg::{DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue};
+use biped_msgs::msg::{BoolMsg, DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue};
 use biped_msgs::srv::{SetBool, SetBoolRequest, Trigger, TriggerRequest, TriggerResponse};
 use ik_solver::BipedModel;
 use joint_bridge::managed::ManagedState;
@@ -268,6 +271,9 @@ fn run() -> anyhow::Result<()> {
             ),
         };
     let diagnostics = ros.publisher::<DiagnosticArray>("/diagnostics")?;
+    // Latched: whether an operator hold ignores joint commands (the planner pauses its walk).
+    let holding_pub = ros.latched_publisher::<BoolMsg>("~/holding")?;
+    let holding_sent = std::cell::Cell::new(None::<bool>);
     let operator = OperatorServices::new(&mut ros)?;
     let lifecycle = LifecycleServices::new(
         &mut ros,
@@ -357,6 +363,15 @@ fn run() -> anyhow::Result<()> {
     let do_tick = |bridge: &mut JointBridge<Box<dyn Backend>>, t_s: f64| {
         operator.serve(&ros, bridge);
         lifecycle.serve(&ros, bridge);
+        let holding = bridge.operator().is_some();
+        if holding_sent.get() != Some(holding) {
+            match holding_pub.publish(BoolMsg { data: holding }) {
+                Ok(()) => holding_sent.set(Some(holding)),
+                Err(e) => {
+                    ros.error_throttled("publish holding", &format!("publish ~/holding: {e}"))
+                }
+            }
+        }
         let (reading, events) = bridge.tick(t_s);
         report(events);
         if let Some(link) = &link
