@@ -11,6 +11,7 @@ mod common;
 use common::{names, spec};
 
 use ik_solver::{BipedModel, DEFAULT_URDF};
+use joint_bridge::managed;
 use joint_bridge::{
     Backend, BackendError, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, Operator,
     Reading, SagCompensation, TimeoutAction, TorqueError,
@@ -479,6 +480,9 @@ enum Act {
     Estop(bool),
     /// The operator's torque request (off: limp; on: hold the measured pose).
     Torque(bool),
+    /// A lifecycle manager's transition, by id (1 configure, 2 cleanup, 3 activate,
+    /// 4 deactivate, 5-7 shutdown); refused when not available from the state.
+    Managed(u8),
 }
 
 fn act() -> impl Strategy<Value = Act> {
@@ -490,6 +494,7 @@ fn act() -> impl Strategy<Value = Act> {
         1 => Just(Act::Restart),
         1 => any::<bool>().prop_map(Act::Estop),
         1 => any::<bool>().prop_map(Act::Torque),
+        2 => (1u8..=7).prop_map(Act::Managed),
     ]
 }
 
@@ -506,7 +511,8 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
 
     /// Random streams of commands, jumps, NaN, silences (the watchdog holds or goes limp),
-    /// stalls, restarts, emergency stops and torque requests: every write is finite, within the joint limits, and between two
+    /// stalls, restarts, emergency stops, torque requests and lifecycle transitions (a
+    /// shutdown ends the stream's writes): every write is finite, within the joint limits, and between two
     /// writes the speed stays within v_max and changes by at most a_max x dt; after a limp or
     /// a restart the next write continues from the measured pose within the same limits.
     #[test]
@@ -527,6 +533,7 @@ proptest! {
         let mut t = 0.0;
         // (time, position, velocity) of the joint as last written, or measured at rest.
         let mut last = (0.0, 0.3, 0.0);
+        let mut managed_state = managed::ManagedState::Active;
         for a in &acts {
             let prev_t = t;
             t += 0.01;
@@ -545,6 +552,11 @@ proptest! {
                 Act::Estop(false) => { b.release_estop(); }
                 // Refused during an emergency stop: nothing changes then.
                 Act::Torque(on) => { let _ = b.set_torque(*on); }
+                Act::Managed(id) => {
+                    if let Ok(tr) = managed::find(managed_state, *id, "") {
+                        managed_state = managed::apply(&mut b, tr).unwrap();
+                    }
+                }
             }
             if limp_before {
                 // The joint lay where gravity took it, at rest.
