@@ -130,6 +130,12 @@ pub trait Backend: Send {
     fn take_notices(&mut self) -> Vec<String> {
         Vec::new()
     }
+    /// For a backend that cannot measure (`configure` returned no positions): the pose
+    /// (rad) its first writes start from, the robot's configured rest pose, which the
+    /// device moves to at its own configured slow speed. `None`: no such pose.
+    fn start_pose(&self) -> Option<Vec<f64>> {
+        None
+    }
 }
 
 /// A boxed backend is a backend (the node picks one at run time).
@@ -157,5 +163,8 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn take_notices(&mut self) -> Vec<String> {
         (**self).take_notices()
+    }
+    fn start_pose(&self) -> Option<Vec<f64>> {
+        (**self).start_pose()
     }
 }

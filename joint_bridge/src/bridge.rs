@@ -380,12 +380,15 @@ impl<B: Backend> JointBridge<B> {
 
     fn configure_and_activate(&mut self) -> Result<(), BackendError> {
         self.ramp = None;
-        if let Some(measured) = self.backend.configure(&self.joints)?
-            && measured.len() == self.joints.len()
-            && measured.iter().all(|v| v.is_finite())
-        {
+        let valid = |p: &Vec<f64>| p.len() == self.joints.len() && p.iter().all(|v| v.is_finite());
+        let measured = self.backend.configure(&self.joints)?.filter(valid);
+        let is_measured = measured.is_some();
+        // A backend that cannot measure starts from its rest pose, which it moves to slowly.
+        if let Some(measured) = measured.or_else(|| self.backend.start_pose().filter(valid)) {
             self.rest_at(&measured);
-            self.measured = Some(measured.clone());
+            if is_measured {
+                self.measured = Some(measured.clone());
+            }
             if self.state == Lifecycle::Unconfigured
                 || self.last_command_s.is_none()
                 || !self.holds.is_empty()

@@ -550,3 +550,132 @@ fn nan_is_never_sent_the_backend_refuses_it_naming_the_joint() {
     std::thread::sleep(std::time::Duration::from_millis(50));
     assert!(board.with(|s| s.goals.is_empty()), "nothing sent");
 }
+
+/// A PWM board that outputs no pulse yet cannot tell where the servos are (#27): the bridge
+/// starts from the calibration's rest pose, the SSC-32U moves there at the calibration's
+/// start speed (every move carries `S` until the board's output pulses are the commanded
+/// ones, then full speed), and the move from the rest pose to the first command is the
+/// bridge's start ramp.
+#[test]
+fn an_ssc32_that_outputs_no_pulse_starts_from_the_rest_pose_at_the_start_speed() {
+    let p = Protocol::Ssc32;
+    let dir = support::temp_dir("rest");
+    let dev = dir.join("ttyBOARD");
+    // The rest pose: knees bent 0.3 rad (hand values: zero ± 0.3 × 636.6198 µs).
+    let text = std::fs::read_to_string(format!(
+        "{}/../config/calibration_ssc32.yaml",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap()
+    .replace(
+        "l_knee: { id: 2, zero: 1000,",
+        "l_knee: { id: 2, rest: 1190.986, zero: 1000,",
+    )
+    .replace(
+        "r_knee: { id: 18, zero: 2000,",
+        "r_knee: { id: 18, rest: 1809.014, zero: 2000,",
+    );
+    let cal = Calibration::from_yaml_str(&format!("{text}\nstart_speed: 250\n"), "test").unwrap();
+    assert_eq!(
+        cal.joints["l_knee"].rest,
+        Some(1190.986),
+        "the test edits the file"
+    );
+    assert_eq!(
+        cal.joints["r_knee"].rest,
+        Some(1809.014),
+        "the test edits the file"
+    );
+    // Power-up: no pulse on any channel (a query answers 0).
+    let off: Vec<(u8, f64)> = cal.joints.values().map(|j| (j.id, 0.0)).collect();
+    let board = Board::new(p, &dev, &off);
+    let joints = leg_specs(&cal);
+    let backend = SerialBackend::new(SerialConfig {
+        port: dev.display().to_string(),
+        baud: 115_200,
+        calibration: cal.clone(),
+        reply_timeout_s: 0.5,
+    });
+    let mut b = JointBridge::new(
+        backend,
+        joints.clone(),
+        BridgeConfig {
+            watchdog_timeout_s: 1e6,
+            start_ramp_s: RAMP_S,
+            ..BridgeConfig::default()
+        },
+    );
+    b.start().unwrap();
+    // No command yet: the bridge holds the rest pose. The emulated board's output pulses
+    // follow at once, so the read after this first move already ends the slow start.
+    let (_, ev) = b.tick(0.0);
+    assert_eq!(
+        ev.iter().map(ToString::to_string).collect::<Vec<_>>(),
+        ["servos at the rest pose (moved there at 250 µs/s); full speed from now"]
+    );
+    let first = wait_goals(&board, 1);
+    for (id, u) in sorted(first[0].clone()) {
+        let j = cal.joints.values().find(|j| j.id == id).unwrap();
+        assert_eq!(u, j.rest.unwrap_or(j.zero).round(), "channel {id}");
+    }
+    let cmds = board.with(|s| s.commands.clone());
+    assert_eq!(
+        cmds.iter()
+            .filter(|c| c.starts_with("speed ") && c.ends_with(" 250"))
+            .count(),
+        10,
+        "every channel's first move at 250 µs/s: {cmds:?}"
+    );
+    // Then the walk's first pose, reached through the start ramp; no move carries a speed.
+    let w = walk(1);
+    let n = (RAMP_S * 100.0) as usize + 5;
+    for (k, (_, angles)) in w.ticks.iter().take(n).enumerate() {
+        let t = 0.01 + k as f64 * 0.01;
+        b.command(t, &w.names, angles);
+        b.tick(t).0.unwrap();
+    }
+    let goals = wait_goals(&board, n + 1);
+    let speeds = board.with(|s| {
+        s.commands
+            .iter()
+            .filter(|c| c.starts_with("speed "))
+            .count()
+    });
+    assert_eq!(speeds, 10, "only the first move is slowed");
+    // Knee: from the rest pose (1191 µs) towards the walk's pose, never a jump: the ramp's
+    // steepest step (1.5 × distance × 0.01 s / 0.5 s) plus the walk's own motion.
+    let knee = cal.joints["l_knee"].id;
+    let track: Vec<f64> = goals
+        .iter()
+        .map(|g| g.iter().find(|(c, _)| *c == knee).unwrap().1)
+        .collect();
+    assert_eq!(track[0], 1191.0);
+    for w2 in track.windows(2) {
+        assert!((w2[1] - w2[0]).abs() <= 40.0, "knee {} → {}", w2[0], w2[1]);
+    }
+}
+
+#[test]
+fn a_rest_pose_outside_the_limits_or_for_a_measuring_board_is_refused_by_name() {
+    let dxl = "protocol: dynamixel2\njoints:\n  l_knee: { id: 2, rest: 2000, zero: 2048, direction: 1, units_per_rad: 651.9, min: 1000, max: 3000 }\n";
+    let e = Calibration::from_yaml_str(dxl, "t")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("joint `l_knee`, key `rest`") && e.contains("starts from the measured pose"),
+        "{e}"
+    );
+    let out = "protocol: ssc32\njoints:\n  l_knee: { id: 2, rest: 2200, zero: 1500, direction: 1, units_per_rad: 636.6, min: 900, max: 2100 }\n";
+    let e = Calibration::from_yaml_str(out, "t")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("key `rest`: 2200 is outside [min, max] = [900, 2100]"),
+        "{e}"
+    );
+    let maestro = "protocol: maestro\nstart_speed: 100\njoints:\n  l_knee: { id: 2, zero: 1500, direction: 1, units_per_rad: 636.6, min: 900, max: 2100 }\n";
+    let e = Calibration::from_yaml_str(maestro, "t")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("key `start_speed`: only for ssc32"), "{e}");
+}

@@ -91,6 +91,9 @@ pub struct SerialBackend {
     rx: Vec<u8>,
     configured_once: bool,
     last_failure: Option<String>,
+    /// SSC-32U: the first move to the rest pose, at the calibration's start speed, until
+    /// the board outputs the commanded pulses.
+    start_move: bool,
 }
 
 impl std::fmt::Debug for SerialBackend {
@@ -117,6 +120,7 @@ impl SerialBackend {
             notices: Vec::new(),
             rx: Vec::new(),
             configured_once: false,
+            start_move: false,
             last_failure: None,
         }
     }
@@ -557,7 +561,10 @@ impl SerialBackend {
                     .zip(units)
                     .map(|(id, &u)| (id, ssc32::whole_us(u)))
                     .collect();
-                ssc32::group_move(&goals, None)
+                let speed = self
+                    .start_move
+                    .then_some(self.config.calibration.start_speed_us_s);
+                ssc32::group_move_at(&goals, speed, None)
             }
         }
     }
@@ -609,6 +616,15 @@ impl Backend for SerialBackend {
         self.protocol().name()
     }
 
+    fn start_pose(&self) -> Option<Vec<f64>> {
+        (!self.protocol().measures()).then(|| {
+            self.servos
+                .iter()
+                .map(|s| s.cal.to_rad(s.cal.rest_units()))
+                .collect()
+        })
+    }
+
     fn configure(&mut self, joints: &[JointSpec]) -> Result<Option<Vec<f64>>, BackendError> {
         let mut servos = Vec::with_capacity(joints.len());
         for j in joints {
@@ -654,6 +670,8 @@ impl Backend for SerialBackend {
                 s.commanded_units = s.cal.to_units(rad);
             }
         }
+        // No pulse out yet: the servos are wherever they are; the first move goes slowly.
+        self.start_move = self.protocol() == Protocol::Ssc32 && measured.is_none();
         Ok(measured)
     }
 
@@ -734,6 +752,19 @@ impl Backend for SerialBackend {
         let measures = self.protocol().measures();
         if measures {
             self.read_positions()?;
+        } else if self.start_move {
+            // The SSC-32U's output pulses trail a speed-limited move: the first move is
+            // over when they are the commanded ones (10 µs resolution).
+            self.read_positions()?;
+            if self.servos.iter().all(|s| {
+                matches!((s.measured_units, s.commanded_units), (Some(m), Some(c)) if (m - c).abs() <= 10.0)
+            }) {
+                self.start_move = false;
+                self.notices.push(format!(
+                    "servos at the rest pose (moved there at {} µs/s); full speed from now",
+                    self.config.calibration.start_speed_us_s
+                ));
+            }
         }
         let positions_rad = self
             .servos

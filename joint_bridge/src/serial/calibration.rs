@@ -76,9 +76,18 @@ pub struct JointCalibration {
     pub min: f64,
     /// Highest units allowed.
     pub max: f64,
+    /// Boards that cannot measure (Maestro, SSC-32U): the units sent first when the board
+    /// outputs no pulse yet (the robot's rest pose); default `zero`.
+    #[serde(default)]
+    pub rest: Option<f64>,
 }
 
 impl JointCalibration {
+    /// The units of the rest pose: `rest`, else `zero`.
+    pub fn rest_units(&self) -> f64 {
+        self.rest.unwrap_or(self.zero)
+    }
+
     /// Servo units for an angle, clamped into [`min`, `max`]. A non-finite angle gives
     /// `None`: it is never sent.
     pub fn to_units(&self, angle_rad: f64) -> Option<f64> {
@@ -100,8 +109,14 @@ struct File {
     speed: Option<u16>,
     #[serde(default)]
     acceleration: Option<u16>,
+    #[serde(default)]
+    start_speed: Option<u16>,
     joints: BTreeMap<String, JointCalibration>,
 }
+
+/// SSC-32U: the default speed of the first move to the rest pose (µs/s; about 0.5 rad/s
+/// for a servo of 636.6 µs/rad).
+pub const DEFAULT_START_SPEED_US_S: u16 = 300;
 
 /// A board's calibration: one entry per joint it drives.
 #[derive(Debug, Clone, PartialEq)]
@@ -112,6 +127,9 @@ pub struct Calibration {
     pub speed: u16,
     /// Maestro acceleration limit for every channel (0 = none).
     pub acceleration: u16,
+    /// SSC-32U: speed of the first move to the rest pose (µs per second), kept on every
+    /// move until the board outputs the commanded pulses.
+    pub start_speed_us_s: u16,
     /// By joint name.
     pub joints: BTreeMap<String, JointCalibration>,
 }
@@ -172,6 +190,20 @@ impl Calibration {
                     format!("only for maestro, not {protocol}"),
                 ));
             }
+        }
+        if protocol != Protocol::Ssc32 && file.start_speed.is_some() {
+            return Err(invalid(
+                "-",
+                "start_speed",
+                format!("only for ssc32, not {protocol}"),
+            ));
+        }
+        if file.start_speed == Some(0) {
+            return Err(invalid(
+                "-",
+                "start_speed",
+                "0 µs/s would never reach the rest pose".into(),
+            ));
         }
         for (key, v) in [("speed", file.speed), ("acceleration", file.acceleration)] {
             if let Some(v) = v
@@ -235,6 +267,24 @@ impl Calibration {
                     format!("{} is not above min {}", j.max, j.min),
                 ));
             }
+            if let Some(rest) = j.rest {
+                if protocol.measures() {
+                    return Err(invalid(
+                        name,
+                        "rest",
+                        format!(
+                            "only for boards that cannot measure (maestro, ssc32); {protocol} starts from the measured pose"
+                        ),
+                    ));
+                }
+                if !(rest.is_finite() && (j.min..=j.max).contains(&rest)) {
+                    return Err(invalid(
+                        name,
+                        "rest",
+                        format!("{rest} is outside [min, max] = [{}, {}]", j.min, j.max),
+                    ));
+                }
+            }
             if !(j.min..=j.max).contains(&j.zero) {
                 return Err(invalid(
                     name,
@@ -247,6 +297,7 @@ impl Calibration {
             protocol,
             speed: file.speed.unwrap_or(0),
             acceleration: file.acceleration.unwrap_or(0),
+            start_speed_us_s: file.start_speed.unwrap_or(DEFAULT_START_SPEED_US_S),
             joints: file.joints,
         })
     }

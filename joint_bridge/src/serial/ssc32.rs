@@ -2,7 +2,7 @@
 //!
 //! | command | text | reply |
 //! |---|---|---|
-//! | group move | `#<ch>P<pw>` for each servo, optionally `T<ms>` (move time), then carriage return | none |
+//! | group move | `#<ch>P<pw>` for each servo, each optionally `S<µs/s>` (speed), optionally `T<ms>` (move time), then carriage return | none |
 //! | pulses off | `#<ch>P0` for each servo, carriage return | none |
 //! | query pulse width | `QP <ch>` for each servo (space separated), carriage return | one byte per servo: pulse width / 10 µs |
 //! | version | `VER`, carriage return | text ending in a carriage return, e.g. `SSC32-V2.50USB` |
@@ -34,9 +34,27 @@ pub fn whole_us(pulse_us: f64) -> u16 {
 /// assert_eq!(line, b"#0P1500#5P1750T100\r");
 /// ```
 pub fn group_move(targets: &[(u8, u16)], time_ms: Option<u32>) -> Vec<u8> {
-    let mut s = String::with_capacity(10 * targets.len() + 8);
+    group_move_at(targets, None, time_ms)
+}
+
+/// A group move with every servo's speed limited to `speed_us_s` (µs per second), if
+/// given: the board moves each output pulse towards its target at that speed.
+///
+/// ```
+/// let line = joint_bridge::serial::ssc32::group_move_at(&[(0, 1500), (5, 1750)], Some(300), None);
+/// assert_eq!(line, b"#0P1500S300#5P1750S300\r");
+/// ```
+pub fn group_move_at(
+    targets: &[(u8, u16)],
+    speed_us_s: Option<u16>,
+    time_ms: Option<u32>,
+) -> Vec<u8> {
+    let mut s = String::with_capacity(16 * targets.len() + 8);
     for &(ch, pw) in targets {
         s.push_str(&format!("#{ch}P{pw}"));
+        if let Some(v) = speed_us_s {
+            s.push_str(&format!("S{v}"));
+        }
     }
     if let Some(t) = time_ms {
         s.push_str(&format!("T{t}"));
@@ -79,6 +97,8 @@ pub fn decode_pulse_width(byte: u8) -> u16 {
 pub enum Line {
     /// Group move: (channel, pulse µs) and the optional time.
     Move(Vec<(u8, u16)>, Option<u32>),
+    /// Group move with speeds: (channel, pulse µs, speed µs/s if given) and the optional time.
+    MoveAt(Vec<(u8, u16, Option<u16>)>, Option<u32>),
     /// Query pulse width of channels.
     Query(Vec<u8>),
     /// Version.
@@ -133,8 +153,14 @@ pub fn decode_line(line: &[u8]) -> Result<Line, LineError> {
                 };
                 let end = p.find(|c: char| !c.is_ascii_digit()).unwrap_or(p.len());
                 let pw: u16 = p[..end].parse().map_err(|_| err("bad pulse width"))?;
-                moves.push((ch, pw));
                 rest = &p[end..];
+                let mut speed = None;
+                if let Some(sp) = rest.strip_prefix('S') {
+                    let end = sp.find(|c: char| !c.is_ascii_digit()).unwrap_or(sp.len());
+                    speed = Some(sp[..end].parse().map_err(|_| err("bad speed"))?);
+                    rest = &sp[end..];
+                }
+                moves.push((ch, pw, speed));
             }
             'T' => {
                 time = Some(num.parse().map_err(|_| err("bad time"))?);
@@ -146,5 +172,11 @@ pub fn decode_line(line: &[u8]) -> Result<Line, LineError> {
     if moves.is_empty() {
         return Err(err("empty move"));
     }
-    Ok(Line::Move(moves, time))
+    if moves.iter().all(|m| m.2.is_none()) {
+        return Ok(Line::Move(
+            moves.into_iter().map(|(c, p, _)| (c, p)).collect(),
+            time,
+        ));
+    }
+    Ok(Line::MoveAt(moves, time))
 }

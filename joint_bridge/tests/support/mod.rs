@@ -398,6 +398,19 @@ fn lynx(line: ssc32::Line, st: &mut State) -> Vec<u8> {
                     .map_or(0, |s| (s.position / 10.0).round() as u8)
             })
             .collect(),
+        ssc32::Line::MoveAt(moves, time) => {
+            // Recorded as commands; the emulator's output pulse follows at once (its query
+            // then says the move is over).
+            for &(ch, _, speed) in &moves {
+                if let Some(v) = speed {
+                    st.commands.push(format!("speed {ch} {v}"));
+                }
+            }
+            lynx(
+                ssc32::Line::Move(moves.iter().map(|&(c, p, _)| (c, p)).collect(), time),
+                st,
+            )
+        }
         ssc32::Line::Move(moves, _) => {
             for &(ch, pw) in &moves {
                 if let Some(s) = st.servos.get_mut(&ch) {
