@@ -33,11 +33,12 @@ use std::path::Path;
 
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{
-    AnkleTargets, Clock, ColorRGBA, CompressedImage, DiagnosticArray, DiagnosticStatus, Duration,
-    GaitPhase, Header, JointState, KeyValue, Marker, MarkerArray, MeshFile, Odometry, Point,
-    Point32, PointStamped, Polygon, PolygonStamped, Pose, PoseStamped, PoseWithCovariance,
-    Quaternion, StringMsg, TFMessage, Time, Transform, TransformStamped, Twist,
-    TwistWithCovariance, UVCoordinate, Vector3, WalkCommand,
+    AnkleTargets, BoolMsg, Clock, ColorRGBA, CompressedImage, DiagnosticArray, DiagnosticStatus,
+    Duration, GaitPhase, Header, JointState, KeyValue, LifecycleState, Marker, MarkerArray,
+    MeshFile, Odometry, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose, PoseStamped,
+    PoseWithCovariance, Quaternion, StringMsg, TFMessage, Time, Transform, TransformStamped,
+    Transition, TransitionDescription, TransitionEvent, Twist, TwistWithCovariance, UVCoordinate,
+    Vector3, WalkCommand,
 };
 use ros2_client::dds::rustdds;
 use rustdds::no_key::{DeserializerAdapter, SerializerAdapter};
@@ -188,6 +189,11 @@ fn registry() -> Vec<Entry> {
         MeshFile,
         Marker,
         MarkerArray,
+        BoolMsg,
+        LifecycleState,
+        Transition,
+        TransitionDescription,
+        TransitionEvent,
     )
 }
 

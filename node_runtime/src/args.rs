@@ -72,7 +72,10 @@ impl RosArgs {
                 "--params-file" => ros.params_files.push(value(&a)?),
                 "--log-level" => ros.log_level = Some(value(&a)?),
                 "-e" | "--enclave" => {
-                    value(&a)?;
+                    let enclave = value(&a)?;
+                    return Err(RosError::Args(format!(
+                        "{a} {enclave}: ROS 2 security (SROS2 enclaves) is not supported: these nodes speak DDS through RustDDS without DDS Security, so they would join the graph unsecured; run them without {a} (and outside a secured graph)"
+                    )));
                 }
                 other => return Err(RosError::Args(format!("unknown ROS argument `{other}`"))),
             }

@@ -89,7 +89,9 @@ impl TickSource {
     pub fn new(ros: &mut RosNode, rate_hz: f64) -> Result<Self, RosError> {
         if ros.setup.use_sim_time() {
             Ok(TickSource::Sim {
-                clock: Box::new(ros.subscription::<Clock>("/clock")?),
+                // Best effort: a `ros2 bag play --clock` or a simulator's best-effort clock
+                // matches too.
+                clock: Box::new(ros.best_effort_subscription::<Clock>("/clock")?),
                 period_ns: (1e9 / rate_hz).round() as i64,
                 last: None,
             })

@@ -1,5 +1,6 @@
 //! The DDS context from the standard ROS environment variables (`ROS_DOMAIN_ID`,
-//! `ROS_AUTOMATIC_DISCOVERY_RANGE`, `ROS_LOCALHOST_ONLY`).
+//! `ROS_AUTOMATIC_DISCOVERY_RANGE`, `ROS_LOCALHOST_ONLY`; `ROS_SECURITY_ENABLE=true` is
+//! refused: no DDS Security here).
 
 use std::net::{IpAddr, Ipv4Addr};
 
@@ -44,6 +45,17 @@ pub fn ros_environment_from(
         }
         _ => 0,
     };
+    // SROS2: a node that cannot do DDS Security must not join a secured graph silently
+    // unsecured (its peers would never match it, or it would leak what they protect).
+    if let Some(v) = var("ROS_SECURITY_ENABLE")
+        && v.trim().eq_ignore_ascii_case("true")
+    {
+        return Err(RosError::Env {
+            name: "ROS_SECURITY_ENABLE",
+            value: v,
+            why: "ROS 2 security (SROS2) is not supported: these nodes use RustDDS without DDS Security; unset it to run them unsecured".into(),
+        });
+    }
     let range = match var("ROS_AUTOMATIC_DISCOVERY_RANGE")
         .unwrap_or_default()
         .to_ascii_uppercase()

@@ -316,6 +316,18 @@ impl RosNode {
             .map_err(dds_err(format!("subscription {name}")))
     }
 
+    /// A subscription to `/clock`-like state `M` on topic `name` with [`qos::clock`] (best
+    /// effort: it matches best-effort and reliable publishers alike).
+    pub fn best_effort_subscription<M: RosMessage + 'static>(
+        &mut self,
+        name: &str,
+    ) -> Result<ros2_client::Subscription<M>, RosError> {
+        let topic = self.topic::<M>(name)?;
+        self.node
+            .create_subscription::<M>(&topic, Some(qos::clock()))
+            .map_err(dds_err(format!("subscription {name}")))
+    }
+
     /// A subscription to latched state `M` on topic `name` (reliable, transient local, keep
     /// last 1): it gets the last message published before it joined.
     pub fn latched_subscription<M: RosMessage + 'static>(

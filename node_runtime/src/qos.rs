@@ -36,6 +36,15 @@ pub fn latched() -> QosProfile {
         })
 }
 
+/// `/clock` as a node reads it: best effort (rclcpp's `ClockQoS`, what `ros2 bag play
+/// --clock` and most simulators publish), which a reliable `/clock` also matches; keep last
+/// 100 so a node that falls behind still sees every tick it can catch up on.
+pub fn clock() -> QosProfile {
+    default()
+        .history(History::KeepLast { depth: 100 })
+        .reliability(Reliability::BestEffort)
+}
+
 /// Services (requests and responses): ROS's service default, reliable, volatile, keep last 10.
 pub fn service() -> QosProfile {
     default()

@@ -77,6 +77,11 @@ fn bad_arguments_are_named() {
         ("--ros-args -r :=x", "empty name"),
         ("--ros-args --frobnicate", "--frobnicate"),
         ("--ros-args -p a:=[1,", "a:=[1,"),
+        (
+            "--ros-args --enclave /biped/planner",
+            "--enclave /biped/planner: ROS 2 security (SROS2 enclaves) is not supported",
+        ),
+        ("--ros-args -e /x", "-e /x: ROS 2 security"),
     ] {
         let e = RosArgs::parse(args(line), "n").unwrap_err().to_string();
         assert!(e.contains(needle), "{line}: {e}");
@@ -200,6 +205,12 @@ fn domain_id_and_discovery_range_from_the_environment() {
         DiscoveryRange::Localhost
     );
     assert_eq!(
+        ros_environment_from(env(&[("ROS_SECURITY_ENABLE", "false")]))
+            .unwrap()
+            .0,
+        0
+    );
+    assert_eq!(
         ros_environment_from(env(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "off")]))
             .unwrap()
             .1,
@@ -209,6 +220,10 @@ fn domain_id_and_discovery_range_from_the_environment() {
         (&[("ROS_DOMAIN_ID", "233")][..], "233"),
         (&[("ROS_DOMAIN_ID", "abc")][..], "abc"),
         (&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "GALAXY")][..], "GALAXY"),
+        (
+            &[("ROS_SECURITY_ENABLE", "true")][..],
+            "ROS_SECURITY_ENABLE",
+        ),
     ] {
         let owned: Vec<(String, String)> = pairs
             .iter()

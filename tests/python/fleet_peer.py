@@ -462,6 +462,31 @@ def scenario_lifecycle(bin_dir, params):
     return out
 
 
+def scenario_clock(bin_dir, params):
+    """The planner on simulated time, its /clock published the way `ros2 bag play --clock`
+    and most simulators publish it: best effort (rclcpp's ClockQoS, depth 1). Records the
+    /gait/phase stamps it publishes and the clock values sent."""
+    from rosgraph_msgs.msg import Clock
+    from builtin_interfaces.msg import Time
+    procs = start_nodes(bin_dir, params, {"gait_planner": ["-p", "use_sim_time:=true"]}, only=["gait_planner"])
+    peer = Peer()
+    clock_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+    pub = peer.node.create_publisher(Clock, "/clock", clock_qos)
+    out = {"sent": []}
+    out["matched"] = peer.spin(20.0, lambda: pub.get_subscription_count() > 0)
+    ns = 5_000_000_000
+    end = time.monotonic() + 4.0
+    while time.monotonic() < end:
+        ns += 10_000_000
+        pub.publish(Clock(clock=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
+        out["sent"].append(ns)
+        peer.spin(0.01)
+    peer.spin(0.5)
+    out["phase_stamps"] = [p["stamp"] for p in peer.phases]
+    out["exits"] = stop_nodes(procs)
+    return out
+
+
 def scenario_launch(bin_dir, params):
     biped = os.path.join(bin_dir, "biped")
     log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test")
@@ -728,6 +753,9 @@ def scenario_sim_kill(bin_dir, params):
         events.append(["estop", peer.now()])
         r = peer.call(Trigger, "/joint_bridge/estop", Trigger.Request())
         out["estop"] = r is not None and r.success
+        # A new client's endpoints take RustDDS seconds to discover: the stop is done by
+        # the answer, not by the call.
+        events.append(["estop answered", peer.now()])
         peer.spin(4.0)
         events.append(["reset", peer.now()])
         r = peer.call(Trigger, "/joint_bridge/reset", Trigger.Request())
@@ -838,7 +866,7 @@ def main():
     params = sys.argv[3] if len(sys.argv) > 3 else None
     result = {"walk": scenario_walk, "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
               "watchdog": scenario_watchdog, "estop": scenario_estop,
-              "lifecycle": scenario_lifecycle, "supervise": scenario_supervise,
+              "lifecycle": scenario_lifecycle, "supervise": scenario_supervise, "clock": scenario_clock,
               "sim_kill": scenario_sim_kill,
               "launch": scenario_launch,
               "sim": scenario_sim}[scenario](bin_dir, params)
