@@ -25,6 +25,10 @@ from sensor_msgs.msg import JointState
 from biped_msgs.msg import AnkleTargets, GaitPhase, WalkCommand
 
 NODES = ["gait_planner", "ik_solver", "joint_bridge"]
+# Every process a scenario starts (nodes, launchers): whatever still runs when the scenario
+# ends, even by an exception, is stopped, so a failed scenario leaves no fleet behind to
+# load the machine for the next test.
+STARTED = []
 
 
 def stamp_ns(header):
@@ -159,6 +163,7 @@ def start_nodes(bin_dir, params, extra=None, only=None):
             args += ["--params-file", params]
         args += (extra or {}).get(name, [])
         procs[name] = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        STARTED.append(procs[name])
     # The peer's participant comes after the nodes' ones, as the scenarios mean it to. Known
     # issue (README): a Fast DDS participant created while our nodes are still starting
     # sometimes never matches some of their endpoints on a loaded machine.
@@ -491,6 +496,7 @@ def scenario_launch(bin_dir, params):
     biped = os.path.join(bin_dir, "biped")
     log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test")
     launcher = subprocess.Popen([biped, "launch", "--log-dir", log_dir], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    STARTED.append(launcher)
     peer = Peer()
     global NODES
     NODES = NODES + ["robot_state_publisher"]
@@ -510,6 +516,7 @@ def scenario_launch(bin_dir, params):
     out["alive_after"] = alive
     # A launcher killed outright: its nodes notice and stop by themselves.
     launcher = subprocess.Popen([biped, "launch", "--log-dir", log_dir + "-kill"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    STARTED.append(launcher)
     pids2 = []
     while len(pids2) < len(NODES):
         line = launcher.stdout.readline()
@@ -599,44 +606,53 @@ def stop_launcher(launcher, out):
     return stdout
 
 
+class Launcher:
+    """`biped launch ARGS` watched as a supervisor test needs it: its stdout read line by
+    line as it comes (the pids of started and restarted nodes), Ctrl-C at the end."""
+
+    def __init__(self, bin_dir, args):
+        import threading
+        self.proc = subprocess.Popen([os.path.join(bin_dir, "biped"), "launch"] + args,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        STARTED.append(self.proc)
+        self.lines = []
+        threading.Thread(target=lambda: [self.lines.append(line) for line in self.proc.stdout],
+                         daemon=True).start()
+
+    def pid_of(self, name, nth=0):
+        """The pid of `name`'s nth start (0: the launch, 1: the first restart), if seen."""
+        found = [int(line.split("(pid ")[1].split(",")[0].split(")")[0]) for line in list(self.lines)
+                 if f" {name} (pid " in line and ("started" in line or "restarted" in line)]
+        return found[nth] if len(found) > nth else None
+
+    def stop(self, out):
+        """Ctrl-C, as a user would; exit code, stderr and stdout into out."""
+        self.proc.send_signal(signal.SIGINT)
+        try:
+            self.proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+        out["launcher_returncode"] = self.proc.returncode
+        out["launcher_stderr"] = self.proc.stderr.read()[-3000:]
+        time.sleep(0.2)
+        out["launcher_stdout"] = "".join(self.lines)
+
+
 def scenario_supervise(bin_dir, params):
     """`biped launch` supervising: mid-walk, `kill -9` of the IK node, later of the joint
     bridge; each comes back (the launcher restarts it) while the other nodes run on. Records
     joint_states, the kill times and what the launcher printed."""
-    import threading
-    biped = os.path.join(bin_dir, "biped")
     log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test") + "-supervise"
-    launcher = subprocess.Popen([biped, "launch", "--log-dir", log_dir, "--respawn-delay", "0.5"],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    lines = []
-    threading.Thread(target=lambda: [lines.append(line) for line in launcher.stdout], daemon=True).start()
-
-    def pid_of(name, nth=0):
-        found = [int(line.split("(pid ")[1].split(",")[0].split(")")[0]) for line in list(lines)
-                 if f" {name} (pid " in line and ("started" in line or "restarted" in line)]
-        return found[nth] if len(found) > nth else None
-
+    launcher = Launcher(bin_dir, ["--log-dir", log_dir, "--respawn-delay", "0.5"])
+    pid_of = launcher.pid_of
     peer = Peer()
     out = {"nodes_seen": peer.wait_for_nodes(30.0)}
     out["matched"] = peer.wait_for_subscribers(peer.walk_pub)
     out["flowing"] = peer.wait_for_flow()
     out["flow_diag"] = getattr(peer, "flow_diag", None)
-
-    def stop():
-        # Ctrl-C, as a user would; stdout is read by the thread above.
-        launcher.send_signal(signal.SIGINT)
-        try:
-            launcher.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            launcher.kill()
-            launcher.wait()
-        out["launcher_returncode"] = launcher.returncode
-        out["launcher_stderr"] = launcher.stderr.read()[-3000:]
-        time.sleep(0.2)
-        out["launcher_stdout"] = "".join(lines)
-
     if not out["flowing"]:
-        stop()
+        launcher.stop(out)
         return out
     peer.walk(0)  # until stopped
     first = peer.states[-1]["position"]
@@ -657,9 +673,9 @@ def scenario_supervise(bin_dir, params):
         out[f"{name}_flowing_again"] = peer.spin(20.0, lambda: len(peer.commands) > n_commands + 50
                                                  and peer.states[-1]["t"] > out[f"{name}_restart_t"])
         peer.spin(1.5)
-    out["launcher_alive"] = launcher.poll() is None
+    out["launcher_alive"] = launcher.proc.poll() is None
     out.update(states=peer.states, rosout=[r for r in peer.rosout if r["level"] >= 30])
-    stop()
+    launcher.stop(out)
     return out
 
 
@@ -676,6 +692,7 @@ def scenario_sim(bin_dir, params):
     peer.spin(1.0)
     launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--log-dir", log_dir],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    STARTED.append(launcher)
     n = peer.node
     qos = QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE)
     clock, base, cop, poly = [], [], [], []
@@ -716,10 +733,8 @@ def scenario_sim_kill(bin_dir, params):
     operator's ~/estop (std_srvs/Trigger) then ~/reset; then `kill -9` of the IK node, of the
     joint bridge and of the planner in turn, each restarted by the launcher. Records the
     simulator's ground-truth base pose, with the peer's clock for every event."""
-    import threading
     from geometry_msgs.msg import PoseStamped
     from std_srvs.srv import Trigger
-    biped = os.path.join(bin_dir, "biped")
     log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test") + "-sim-kill"
     # The observer is up first, as in the sim scenario.
     peer = Peer()
@@ -729,16 +744,8 @@ def scenario_sim_kill(bin_dir, params):
         {"t": peer.now(), "x": m.pose.position.x, "y": m.pose.position.y, "z": m.pose.position.z,
          "qx": m.pose.orientation.x, "qy": m.pose.orientation.y}), qos)
     peer.spin(1.0)
-    launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--log-dir", log_dir,
-                                 "--respawn-delay", "0.5"],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    lines = []
-    threading.Thread(target=lambda: [lines.append(line) for line in launcher.stdout], daemon=True).start()
-
-    def pid_of(name, nth=0):
-        found = [int(line.split("(pid ")[1].split(",")[0].split(")")[0]) for line in list(lines)
-                 if f" {name} (pid " in line and ("started" in line or "restarted" in line)]
-        return found[nth] if len(found) > nth else None
+    launcher = Launcher(bin_dir, ["--backend", "sim", "--log-dir", log_dir, "--respawn-delay", "0.5"])
+    pid_of = launcher.pid_of
 
     global NODES
     NODES = NODES + ["sim_bridge"]
@@ -782,16 +789,7 @@ def scenario_sim_kill(bin_dir, params):
     out["base"] = base
     out["phases_tail"] = peer.phases[-5:]
     out["rosout"] = [r for r in peer.rosout if r["level"] >= 30]
-    launcher.send_signal(signal.SIGINT)
-    try:
-        launcher.wait(timeout=20)
-    except subprocess.TimeoutExpired:
-        launcher.kill()
-        launcher.wait()
-    out["launcher_returncode"] = launcher.returncode
-    out["launcher_stderr"] = launcher.stderr.read()[-3000:]
-    time.sleep(0.2)
-    out["launcher_stdout"] = "".join(lines)
+    launcher.stop(out)
     return out
 
 
@@ -820,6 +818,7 @@ def scenario_teleop_sim(bin_dir, params):
     peer.spin(1.0)
     launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--robot", robot, "--log-dir", log_dir],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    STARTED.append(launcher)
     global NODES
     NODES = NODES + ["sim_bridge"]
     out = {"nodes_seen": peer.wait_for_nodes(60.0)}
@@ -864,6 +863,22 @@ def scenario_teleop_sim(bin_dir, params):
 def main():
     scenario, bin_dir = sys.argv[1], sys.argv[2]
     params = sys.argv[3] if len(sys.argv) > 3 else None
+    try:
+        run_scenario(scenario, bin_dir, params)
+    finally:
+        # Ctrl-C to what still runs (a launcher stops its nodes), then kill what is left.
+        alive = [p for p in STARTED if p.poll() is None]
+        for p in alive:
+            p.send_signal(signal.SIGINT)
+        for p in alive:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+def run_scenario(scenario, bin_dir, params):
     result = {"walk": scenario_walk, "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
               "watchdog": scenario_watchdog, "estop": scenario_estop,
               "lifecycle": scenario_lifecycle, "supervise": scenario_supervise, "clock": scenario_clock,

@@ -43,8 +43,8 @@ use biped_msgs::msg::{
 };
 use gait_planner::standing::STANDING_TOLERANCE_RAD;
 use gait_planner::{
-    GaitParams, GaitPlanner, GaitSample, PhaseKind, StandGuard, StartQueue, Stride, Velocity,
-    VelocityFollower, WalkRequest,
+    GaitParams, GaitPlanner, GaitSample, PhaseKind, StandGuard, Standing, StartQueue, Stride,
+    Velocity, VelocityFollower, WalkRequest,
 };
 use ik_solver::{BipedModel, LegOdometry};
 use node_runtime::{NodeSetup, RosNode, TickSource};
@@ -525,6 +525,8 @@ fn run() -> anyhow::Result<()> {
         // While the joint bridge holds (e-stop, torque off, inactive) the walk pauses: its
         // time stands still, so it resumes where the joints were held, not ahead of them.
         let (mut paused, mut paused_ticks) = (false, 0u64);
+        // Ticks since this node started (k counts from the clock's origin).
+        let (mut said_waiting, mut ticks_here) = (false, 0u64);
         while !stop.load(Ordering::SeqCst) {
             let Some(tick) = ticks.next().await else {
                 continue;
@@ -599,6 +601,7 @@ fn run() -> anyhow::Result<()> {
             if paused {
                 paused_ticks += 1;
             }
+            ticks_here += 1;
             let t_s = k.saturating_sub(paused_ticks) as f64 / rate;
             while let Ok(Some((msg, _))) = cmd_vel.take() {
                 for w in commands.cmd_vel(&mut planner, &msg, t_s) {
@@ -637,6 +640,14 @@ fn run() -> anyhow::Result<()> {
                         ros.warn(&said);
                     }
                 }
+            }
+            if let Some(g) = &guard
+                && !said_waiting
+                && *g.state() == Standing::Unknown
+                && ticks_here as f64 > 2.0 * rate
+            {
+                said_waiting = true;
+                ros.warn("stand_at_start is false and no complete joint_states came in 2 s: publishing no ankle targets until the robot's pose is measured");
             }
             let mut sent = to_msgs(&sample, now, &base_frame);
             match guard.as_ref().filter(|g| !g.clear()) {
