@@ -310,10 +310,7 @@ impl RosNode {
         &mut self,
         name: &str,
     ) -> Result<ros2_client::Subscription<M>, RosError> {
-        let topic = self.topic::<M>(name)?;
-        self.node
-            .create_subscription::<M>(&topic, None)
-            .map_err(dds_err(format!("subscription {name}")))
+        self.subscription_with(name, None)
     }
 
     /// A subscription to `/clock`-like state `M` on topic `name` with [`qos::clock`] (best
@@ -322,10 +319,7 @@ impl RosNode {
         &mut self,
         name: &str,
     ) -> Result<ros2_client::Subscription<M>, RosError> {
-        let topic = self.topic::<M>(name)?;
-        self.node
-            .create_subscription::<M>(&topic, Some(qos::clock()))
-            .map_err(dds_err(format!("subscription {name}")))
+        self.subscription_with(name, Some(qos::clock()))
     }
 
     /// A subscription to latched state `M` on topic `name` (reliable, transient local, keep
@@ -334,9 +328,17 @@ impl RosNode {
         &mut self,
         name: &str,
     ) -> Result<ros2_client::Subscription<M>, RosError> {
+        self.subscription_with(name, Some(qos::latched()))
+    }
+
+    fn subscription_with<M: RosMessage + 'static>(
+        &mut self,
+        name: &str,
+        qos: Option<ros2_client::QosProfile>,
+    ) -> Result<ros2_client::Subscription<M>, RosError> {
         let topic = self.topic::<M>(name)?;
         self.node
-            .create_subscription::<M>(&topic, Some(qos::latched()))
+            .create_subscription::<M>(&topic, qos)
             .map_err(dds_err(format!("subscription {name}")))
     }
 

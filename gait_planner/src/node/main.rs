@@ -46,7 +46,7 @@ use gait_planner::{
     GaitParams, GaitPlanner, GaitSample, PhaseKind, StandGuard, Standing, StartQueue, Stride,
     Velocity, VelocityFollower, WalkRequest,
 };
-use ik_solver::{BipedModel, LegOdometry};
+use ik_solver::{AnkleTarget, BipedModel, LegOdometry};
 use node_runtime::{NodeSetup, RosNode, TickSource};
 use ros2_client::ParameterValue;
 
@@ -369,11 +369,14 @@ impl OdomPublisher {
     }
 }
 
+/// The tick's phase, and the ankle targets `targets` (the sample's, or the held measured
+/// pose's; `None`: no targets this tick) as messages.
 fn to_msgs(
     s: &GaitSample,
+    targets: Option<&[AnkleTarget; 2]>,
     stamp: biped_msgs::msg::Time,
     base_frame: &str,
-) -> (GaitPhase, AnkleTargets) {
+) -> (GaitPhase, Option<AnkleTargets>) {
     let header = Header {
         stamp,
         frame_id: base_frame.to_owned(),
@@ -392,14 +395,14 @@ fn to_msgs(
             step_index: s.step_index,
             progress: s.progress,
         },
-        AnkleTargets {
+        targets.map(|[l, r]| AnkleTargets {
             header,
-            left_ankle: p(&s.targets[0].ankle_in_hip_m),
-            right_ankle: p(&s.targets[1].ankle_in_hip_m),
-            left_foot_yaw: s.targets[0].foot_yaw_rad,
-            right_foot_yaw: s.targets[1].foot_yaw_rad,
+            left_ankle: p(&l.ankle_in_hip_m),
+            right_ankle: p(&r.ankle_in_hip_m),
+            left_foot_yaw: l.foot_yaw_rad,
+            right_foot_yaw: r.foot_yaw_rad,
             pelvis: p(b),
-        },
+        }),
     )
 }
 
@@ -407,9 +410,11 @@ fn publish(
     ros: &RosNode,
     targets_pub: &ros2_client::Publisher<AnkleTargets>,
     phase_pub: &ros2_client::Publisher<GaitPhase>,
-    (phase, targets): &(GaitPhase, AnkleTargets),
+    (phase, targets): &(GaitPhase, Option<AnkleTargets>),
 ) {
-    if let Err(e) = targets_pub.publish(targets.clone()) {
+    if let Some(targets) = targets
+        && let Err(e) = targets_pub.publish(targets.clone())
+    {
         ros.error_throttled(
             "publish gait/ankle_targets",
             &format!("publish gait/ankle_targets: {e}"),
@@ -521,7 +526,7 @@ fn run() -> anyhow::Result<()> {
         // Walk commands with a start time still ahead (bounded; a stop empties it).
         let mut pending: StartQueue<WalkCommand> = StartQueue::default();
         let mut last_stamped: Option<WalkCommand> = None;
-        let mut last_sent: Option<(GaitPhase, AnkleTargets)> = None;
+        let mut last_sent: Option<(GaitPhase, Option<AnkleTargets>)> = None;
         // While the joint bridge holds (e-stop, torque off, inactive) the walk pauses: its
         // time stands still, so it resumes where the joints were held, not ahead of them.
         let (mut paused, mut paused_ticks) = (false, 0u64);
@@ -649,27 +654,13 @@ fn run() -> anyhow::Result<()> {
                 said_waiting = true;
                 ros.warn("stand_at_start is false and no complete joint_states came in 2 s: publishing no ankle targets until the robot's pose is measured");
             }
-            let mut sent = to_msgs(&sample, now, &base_frame);
-            match guard.as_ref().filter(|g| !g.clear()) {
-                // Not standing (yet): the measured pose held, or (unknown) nothing at all.
-                Some(g) => {
-                    if let Some([l, r]) = g.held_targets() {
-                        let p = |v: &nalgebra::Vector3<f64>| Point {
-                            x: v.x,
-                            y: v.y,
-                            z: v.z,
-                        };
-                        sent.1.left_ankle = p(&l.ankle_in_hip_m);
-                        sent.1.right_ankle = p(&r.ankle_in_hip_m);
-                        sent.1.left_foot_yaw = l.foot_yaw_rad;
-                        sent.1.right_foot_yaw = r.foot_yaw_rad;
-                        publish(&ros, &targets_pub, &phase_pub, &sent);
-                    } else if let Err(e) = phase_pub.publish(sent.0.clone()) {
-                        ros.error_throttled("publish gait/phase", &format!("publish gait/phase: {e}"));
-                    }
-                }
-                None => publish(&ros, &targets_pub, &phase_pub, &sent),
-            }
+            // Not standing yet (a restart): the held measured pose, or (unknown) nothing.
+            let targets = match guard.as_ref().filter(|g| !g.clear()) {
+                Some(g) => g.held_targets(),
+                None => Some(&sample.targets),
+            };
+            let sent = to_msgs(&sample, targets, now, &base_frame);
+            publish(&ros, &targets_pub, &phase_pub, &sent);
             let header = Header {
                 stamp: now,
                 frame_id: "odom".into(),
