@@ -866,16 +866,21 @@ def main():
     try:
         run_scenario(scenario, bin_dir, params)
     finally:
-        # Ctrl-C to what still runs (a launcher stops its nodes), then kill what is left.
-        alive = [p for p in STARTED if p.poll() is None]
-        for p in alive:
-            p.send_signal(signal.SIGINT)
-        for p in alive:
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+        stop_started()
+
+
+def stop_started():
+    """Ctrl-C to every started process that still runs (a launcher stops its nodes), then
+    kill what is left."""
+    alive = [p for p in STARTED if p.poll() is None]
+    for p in alive:
+        p.send_signal(signal.SIGINT)
+    for p in alive:
+        try:
+            p.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
 
 
 def run_scenario(scenario, bin_dir, params):
