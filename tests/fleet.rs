@@ -1100,3 +1100,39 @@ fn a_best_effort_clock_drives_a_node_on_simulated_time() {
         v["exits"]
     );
 }
+
+/// `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` as ROS 2 Jazzy's rmw_fastrtps means it, against
+/// rclpy on Fast DDS: an OFF node is found by no one, not even by a LOCALHOST peer on the
+/// same machine that announces itself to it, while a LOCALHOST node beside it is found and
+/// walked (the control). Before, OFF was taken as LOCALHOST: the node was found.
+#[test]
+fn a_node_with_discovery_off_is_found_by_no_one() {
+    let v = peer("discovery_off", 95);
+    assert_eq!(
+        v["planner_seen"], true,
+        "control: the LOCALHOST planner was never seen: {}",
+        v["exits"]
+    );
+    assert_eq!(v["walk_command_matched"], true, "{}", v["exits"]);
+    assert_eq!(
+        v["walked"], true,
+        "control: the peer's walk command did not start the walk"
+    );
+    let seen: Vec<&str> = v["nodes_seen"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    assert!(
+        !seen.contains(&"ik_solver"),
+        "the IK node, OFF, was found: {seen:?}"
+    );
+    assert_eq!(
+        v["ankle_targets_subscribers"], 0,
+        "the OFF IK node's /gait/ankle_targets subscription was found"
+    );
+    for node in ["gait_planner", "ik_solver"] {
+        assert_eq!(v["exits"][node]["returncode"], 0, "{}", v["exits"]);
+    }
+}

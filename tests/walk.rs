@@ -284,6 +284,22 @@ fn bad_arguments_are_refused_by_name() {
     let r = walk(69, &out, &["--robot", "/nonexistent/robot.urdf"]);
     assert!(!r.status.success());
     assert!(String::from_utf8_lossy(&r.stderr).contains("/nonexistent/robot.urdf"));
+    // OFF: the nodes could never find each other.
+    let r = std::process::Command::new("unshare")
+        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
+        .arg(common::bin_dir().join("biped"))
+        .args(["walk", "--out"])
+        .arg(&out)
+        .env("ROS_DOMAIN_ID", "69")
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF")
+        .output()
+        .unwrap();
+    assert!(!r.status.success());
+    assert!(
+        String::from_utf8_lossy(&r.stderr).contains("ROS_AUTOMATIC_DISCOVERY_RANGE=OFF"),
+        "{}",
+        String::from_utf8_lossy(&r.stderr)
+    );
 }
 
 /// A robot from an MJCF scene written for the tests (other names, its own contacts), mapped

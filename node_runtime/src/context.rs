@@ -1,8 +1,8 @@
 //! The DDS context from the standard ROS environment variables (`ROS_DOMAIN_ID`,
-//! `ROS_AUTOMATIC_DISCOVERY_RANGE`, `ROS_LOCALHOST_ONLY`; `ROS_SECURITY_ENABLE=true` is
-//! refused: no DDS Security here).
+//! `ROS_AUTOMATIC_DISCOVERY_RANGE`, `ROS_STATIC_PEERS`, `ROS_LOCALHOST_ONLY`;
+//! `ROS_SECURITY_ENABLE=true` is refused: no DDS Security here).
 
-use std::net::{IpAddr, Ipv4Addr};
+use std::net::{IpAddr, Ipv4Addr, ToSocketAddrs};
 
 use ros2_client::Context;
 
@@ -16,6 +16,10 @@ pub enum DiscoveryRange {
     Localhost,
     /// The default: the local networks.
     Subnet,
+    /// No discovery at all: no multicast, no announcements, and every other participant
+    /// refused, even on this machine and even if it contacts this one (`ROS_STATIC_PEERS`
+    /// are not used either), as rmw_fastrtps does in ROS 2 Jazzy.
+    Off,
 }
 
 /// Reads `ROS_DOMAIN_ID` (0–232, default 0) and the discovery range from the environment.
@@ -61,7 +65,8 @@ pub fn ros_environment_from(
         .to_ascii_uppercase()
         .as_str()
     {
-        "LOCALHOST" | "OFF" => DiscoveryRange::Localhost,
+        "LOCALHOST" => DiscoveryRange::Localhost,
+        "OFF" => DiscoveryRange::Off,
         "" | "SYSTEM_DEFAULT" | "SUBNET" => {
             if var("ROS_LOCALHOST_ONLY").as_deref() == Some("1") {
                 DiscoveryRange::Localhost
@@ -80,31 +85,74 @@ pub fn ros_environment_from(
     Ok((domain, range))
 }
 
-/// A DDS context for the environment's domain and discovery range. With LOCALHOST, DDS
-/// traffic stays on 127.0.0.1.
+/// The hosts of `ROS_STATIC_PEERS`: addresses or host names separated by `;` (empty
+/// entries skipped), each resolved to its first address. A host that does not resolve is
+/// an error naming it.
+pub fn static_peers_from(var: impl Fn(&str) -> Option<String>) -> Result<Vec<IpAddr>, RosError> {
+    let Some(list) = var("ROS_STATIC_PEERS") else {
+        return Ok(Vec::new());
+    };
+    list.split(';')
+        .map(str::trim)
+        .filter(|p| !p.is_empty())
+        .map(|peer| {
+            if let Ok(ip) = peer.parse::<IpAddr>() {
+                return Ok(ip);
+            }
+            (peer, 0)
+                .to_socket_addrs()
+                .ok()
+                .and_then(|mut a| a.next())
+                .map(|a| a.ip())
+                .ok_or_else(|| RosError::Env {
+                    name: "ROS_STATIC_PEERS",
+                    value: list.clone(),
+                    why: format!("`{peer}` is neither an IP address nor a host name that resolves"),
+                })
+        })
+        .collect()
+}
+
+/// A DDS context for the environment's domain, discovery range and static peers. With
+/// LOCALHOST, DDS traffic stays on 127.0.0.1.
 pub fn context_from_env() -> Result<Context, RosError> {
     let (domain, range) = ros_environment()?;
     context_for(domain, range)
 }
 
-/// A DDS context for a domain and discovery range. With LOCALHOST, DDS traffic stays on
-/// 127.0.0.1.
+/// A DDS context for a domain and discovery range, with the static peers of the
+/// environment's `ROS_STATIC_PEERS`. With LOCALHOST, DDS traffic stays on 127.0.0.1.
 pub fn context_for(domain: u16, range: DiscoveryRange) -> Result<Context, RosError> {
+    let peers = static_peers_from(|name| std::env::var(name).ok())?;
+    context_with_peers(domain, range, &peers)
+}
+
+/// A DDS context for a domain, a discovery range and static peers, as ROS 2 Jazzy's
+/// rmw_fastrtps reads `ROS_AUTOMATIC_DISCOVERY_RANGE` and `ROS_STATIC_PEERS`: SUBNET finds
+/// participants by multicast on the local networks; LOCALHOST keeps DDS traffic on
+/// 127.0.0.1; both also announce themselves by unicast to the static peers (with
+/// LOCALHOST, only peers on this machine can answer). OFF discovers nothing: no multicast,
+/// no announcements, other participants refused, static peers unused.
+pub fn context_with_peers(
+    domain: u16,
+    range: DiscoveryRange,
+    static_peers: &[IpAddr],
+) -> Result<Context, RosError> {
     let dds = |what: &str, e: &dyn std::fmt::Display| RosError::Dds {
         what: what.into(),
         message: e.to_string(),
     };
-    match range {
-        DiscoveryRange::Localhost => {
-            let participant = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
-                .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
-                .build()
-                .map_err(|e| dds("DDS participant", &e))?;
-            Context::from_domain_participant(participant).map_err(|e| dds("ROS context", &e))
-        }
-        DiscoveryRange::Subnet => {
-            Context::with_options(ros2_client::ContextOptions::new().domain_id(domain))
-                .map_err(|e| dds("ROS context", &e))
-        }
-    }
+    let builder = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain);
+    let builder = match range {
+        DiscoveryRange::Localhost => builder
+            .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])
+            .with_static_peers(static_peers.iter().copied()),
+        DiscoveryRange::Subnet => builder.with_static_peers(static_peers.iter().copied()),
+        DiscoveryRange::Off => builder
+            .multicast(false)
+            .same_host_loopback(false)
+            .remote_participants(false),
+    };
+    let participant = builder.build().map_err(|e| dds("DDS participant", &e))?;
+    Context::from_domain_participant(participant).map_err(|e| dds("ROS context", &e))
 }

@@ -28,7 +28,8 @@ pub mod qos;
 pub use args::{RosArgs, topic_name};
 pub use clock::{Tick, TickSource, Ticker};
 pub use context::{
-    DiscoveryRange, context_for, context_from_env, ros_environment, ros_environment_from,
+    DiscoveryRange, context_for, context_from_env, context_with_peers, ros_environment,
+    ros_environment_from, static_peers_from,
 };
 pub use error::RosError;
 pub use log::Log;

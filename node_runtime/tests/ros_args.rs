@@ -214,7 +214,7 @@ fn domain_id_and_discovery_range_from_the_environment() {
         ros_environment_from(env(&[("ROS_AUTOMATIC_DISCOVERY_RANGE", "off")]))
             .unwrap()
             .1,
-        DiscoveryRange::Localhost
+        DiscoveryRange::Off
     );
     for (pairs, needle) in [
         (&[("ROS_DOMAIN_ID", "233")][..], "233"),
@@ -234,4 +234,28 @@ fn domain_id_and_discovery_range_from_the_environment() {
                 .unwrap_err();
         assert!(e.to_string().contains(needle), "{e}");
     }
+}
+
+#[test]
+fn static_peers_from_the_environment() {
+    use node_runtime::static_peers_from;
+    use std::net::IpAddr;
+    let peers = |v: &str| {
+        let v = v.to_owned();
+        static_peers_from(move |k| (k == "ROS_STATIC_PEERS").then(|| v.clone()))
+    };
+    assert_eq!(static_peers_from(|_| None).unwrap(), Vec::<IpAddr>::new());
+    assert_eq!(peers("").unwrap(), Vec::<IpAddr>::new());
+    assert_eq!(
+        peers("192.168.1.20; 10.0.0.7;;::1").unwrap(),
+        ["192.168.1.20", "10.0.0.7", "::1"]
+            .map(|a| a.parse::<IpAddr>().unwrap())
+            .to_vec()
+    );
+    // A name that cannot resolve (RFC 6761 reserves .invalid) is named in the error.
+    let e = peers("10.0.0.7;robot.invalid").unwrap_err().to_string();
+    assert!(
+        e.contains("ROS_STATIC_PEERS") && e.contains("`robot.invalid`"),
+        "{e}"
+    );
 }

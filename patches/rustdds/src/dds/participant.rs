@@ -44,7 +44,7 @@ use crate::{
   },
   rtps::{
     constant::*,
-    dp_event_loop::{DPEventLoop, DomainInfo, EventLoopCommand},
+    dp_event_loop::{DPEventLoop, DiscoveryReach, DomainInfo, EventLoopCommand},
     reader::*,
     writer::WriterIngredients,
   },
@@ -77,6 +77,9 @@ pub struct DomainParticipantBuilder {
                                        * and multicast setup */
 
   same_host_loopback: bool, // prefer loopback for same-host peers + localhost SPDP discovery peers
+  multicast: bool,          // join the multicast groups and announce multicast locators
+  remote_participants: bool, // discover other participants at all
+  static_peers: Vec<IpAddr>, // hosts announced to by unicast SPDP
 
   socket_receive_buffer_size: usize,
   socket_send_buffer_size: usize,
@@ -93,6 +96,9 @@ impl DomainParticipantBuilder {
       domain_id,
       only_networks: None,
       same_host_loopback: true,
+      multicast: true,
+      remote_participants: true,
+      static_peers: Vec::new(),
       socket_receive_buffer_size: Self::DEFAULT_SOCKET_RECEIVE_BUFFER_SIZE,
       socket_send_buffer_size: Self::DEFAULT_SOCKET_SEND_BUFFER_SIZE,
       #[cfg(feature = "security")]
@@ -126,6 +132,39 @@ impl DomainParticipantBuilder {
   /// `src/rtps/loopback_same_host_design.md`.
   pub fn same_host_loopback(mut self, enabled: bool) -> Self {
     self.same_host_loopback = enabled;
+    self
+  }
+
+  /// Enable/disable multicast (default: enabled).
+  ///
+  /// Disabled, the participant joins no multicast group and announces no
+  /// multicast locator, so that it finds and is found only by unicast: the
+  /// localhost peers (`same_host_loopback`) and the static peers
+  /// (`with_static_peers`). ROS 2's `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` is this
+  /// with `same_host_loopback(false)`.
+  pub fn multicast(mut self, enabled: bool) -> Self {
+    self.multicast = enabled;
+    self
+  }
+
+  /// Accept/refuse other participants (default: accept). Refusing, discovery
+  /// ignores every other participant's SPDP announcement, so that this
+  /// participant matches nothing outside itself even when a peer contacts it
+  /// directly. ROS 2's `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` is this with
+  /// `multicast(false)` and `same_host_loopback(false)` (rmw_fastrtps limits
+  /// the participant to itself likewise).
+  pub fn remote_participants(mut self, accept: bool) -> Self {
+    self.remote_participants = accept;
+    self
+  }
+
+  /// Hosts to announce this participant to by unicast SPDP, besides multicast
+  /// and the localhost peers: the well-known SPDP unicast port of every
+  /// participant id below `SPDP_LOCALHOST_PEER_COUNT` at each address. A peer
+  /// that hears the announcement answers, and discovery proceeds as usual.
+  /// ROS 2's `ROS_STATIC_PEERS`.
+  pub fn with_static_peers(mut self, addrs: impl IntoIterator<Item = impl Into<IpAddr>>) -> Self {
+    self.static_peers = addrs.into_iter().map(Into::into).collect();
     self
   }
 
@@ -343,7 +382,12 @@ impl DomainParticipantBuilder {
       self.socket_receive_buffer_size,
       self.socket_send_buffer_size,
       self.only_networks,
-      self.same_host_loopback,
+      DiscoveryReach {
+        same_host_loopback: self.same_host_loopback,
+        multicast: self.multicast,
+        remote_participants: self.remote_participants,
+        static_peers: self.static_peers,
+      },
       dp_waker,
       discovery_sample_sender,
     )?;
@@ -539,6 +583,14 @@ impl DomainParticipant {
 
   pub(crate) fn only_networks(&self) -> Option<Arc<[IpAddr]>> {
     self.dpi.lock().ok().and_then(|g| g.only_networks())
+  }
+
+  /// Whether discovery accepts other participants (`remote_participants`).
+  pub(crate) fn accepts_remote_participants(&self) -> bool {
+    self
+      .dpi
+      .lock()
+      .map_or(true, |g| g.accepts_remote_participants())
   }
 
   /// Gets all DiscoveredTopics from DDS network
@@ -976,7 +1028,7 @@ impl DomainParticipantDisc {
     socket_receive_buffer_size: usize,
     socket_send_buffer_size: usize,
     only_networks: Option<Vec<IpAddr>>,
-    same_host_loopback: bool,
+    reach: DiscoveryReach,
     dp_waker: LoopWaker,
     discovery_sample_sender: ReadySender<mio1::Token>,
   ) -> CreateResult<Self> {
@@ -993,7 +1045,7 @@ impl DomainParticipantDisc {
       socket_receive_buffer_size,
       socket_send_buffer_size,
       only_networks,
-      same_host_loopback,
+      reach,
       dp_waker,
       discovery_sample_sender,
     )?;
@@ -1083,6 +1135,10 @@ impl DomainParticipantDisc {
 
   pub(crate) fn only_networks(&self) -> Option<Arc<[IpAddr]>> {
     self.dpi.only_networks()
+  }
+
+  pub(crate) fn accepts_remote_participants(&self) -> bool {
+    self.dpi.accepts_remote_participants()
   }
 
   #[cfg(feature = "security")] // just to avoid warning
@@ -1194,6 +1250,8 @@ pub(crate) struct DomainParticipantInner {
   security_plugins_handle: Option<SecurityPluginsHandle>,
 
   only_networks: Option<Arc<[IpAddr]>>,
+
+  remote_participants: bool,
 }
 
 impl Drop for DomainParticipantInner {
@@ -1235,7 +1293,7 @@ impl DomainParticipantInner {
     socket_receive_buffer_size: usize,
     socket_send_buffer_size: usize,
     only_networks: Option<Vec<IpAddr>>,
-    same_host_loopback: bool,
+    reach: DiscoveryReach,
     dp_waker: LoopWaker,
     discovery_sample_sender: ReadySender<mio1::Token>,
   ) -> CreateResult<Self> {
@@ -1243,20 +1301,23 @@ impl DomainParticipantInner {
     let _dummy = _qos_policies; // to make clippy happy
 
     let only_networks: Option<Arc<[IpAddr]>> = only_networks.map(|v| v.into());
+    let remote_participants = reach.remote_participants;
 
     let mut listeners = HashMap::new();
 
-    match UDPListener::new_multicast_with_buf_size(
-      "0.0.0.0",
-      spdp_well_known_multicast_port(domain_id),
-      Ipv4Addr::new(239, 255, 0, 1),
-      socket_receive_buffer_size,
-      only_networks.as_deref(),
-    ) {
-      Ok(l) => {
-        listeners.insert(DISCOVERY_MUL_LISTENER_TOKEN, l);
+    if reach.multicast {
+      match UDPListener::new_multicast_with_buf_size(
+        "0.0.0.0",
+        spdp_well_known_multicast_port(domain_id),
+        Ipv4Addr::new(239, 255, 0, 1),
+        socket_receive_buffer_size,
+        only_networks.as_deref(),
+      ) {
+        Ok(l) => {
+          listeners.insert(DISCOVERY_MUL_LISTENER_TOKEN, l);
+        }
+        Err(e) => warn!("Cannot get multicast discovery listener: {e:?}"),
       }
-      Err(e) => warn!("Cannot get multicast discovery listener: {e:?}"),
     }
 
     let mut participant_id = 0;
@@ -1288,17 +1349,19 @@ impl DomainParticipantInner {
 
     // Now the user traffic listeners
 
-    match UDPListener::new_multicast_with_buf_size(
-      "0.0.0.0",
-      user_traffic_multicast_port(domain_id),
-      Ipv4Addr::new(239, 255, 0, 1),
-      socket_receive_buffer_size,
-      only_networks.as_deref(),
-    ) {
-      Ok(l) => {
-        listeners.insert(USER_TRAFFIC_MUL_LISTENER_TOKEN, l);
+    if reach.multicast {
+      match UDPListener::new_multicast_with_buf_size(
+        "0.0.0.0",
+        user_traffic_multicast_port(domain_id),
+        Ipv4Addr::new(239, 255, 0, 1),
+        socket_receive_buffer_size,
+        only_networks.as_deref(),
+      ) {
+        Ok(l) => {
+          listeners.insert(USER_TRAFFIC_MUL_LISTENER_TOKEN, l);
+        }
+        Err(e) => warn!("Cannot get multicast user traffic listener: {e:?}"),
       }
-      Err(e) => warn!("Cannot get multicast user traffic listener: {e:?}"),
     }
 
     let user_traffic_listener = UDPListener::new_unicast_with_buf_size(
@@ -1411,7 +1474,7 @@ impl DomainParticipantInner {
           security_plugins_clone,
           only_networks_for_ev_loop,
           socket_send_buffer_size,
-          same_host_loopback,
+          reach,
           reader_ready_rx,
           writer_ready_rx,
           dp_waker,
@@ -1464,6 +1527,7 @@ impl DomainParticipantInner {
       self_locators,
       security_plugins_handle,
       only_networks,
+      remote_participants,
     })
   }
 
@@ -1473,6 +1537,10 @@ impl DomainParticipantInner {
 
   pub(crate) fn only_networks(&self) -> Option<Arc<[IpAddr]>> {
     self.only_networks.clone()
+  }
+
+  pub(crate) fn accepts_remote_participants(&self) -> bool {
+    self.remote_participants
   }
 
   #[cfg(feature = "security")] // just to avoid warning
@@ -1773,7 +1841,8 @@ mod tests {
     },
     test::{random_data::RandomData, test_domain::test_domain_id},
   };
-  use super::DomainParticipant;
+  use super::{DomainParticipant, DomainParticipantBuilder};
+  use crate::structure::entity::RTPSEntity;
 
   // TODO: improve basic test when more or the structure is known
   #[test]
@@ -1791,6 +1860,83 @@ mod tests {
 
     // TODO: get result data from Reader
   }
+  // Without multicast the participant joins no multicast group, so it announces
+  // only its unicast locators (ROS_AUTOMATIC_DISCOVERY_RANGE=OFF).
+  #[test]
+  fn a_participant_without_multicast_has_no_multicast_locators() {
+    use crate::rtps::constant::{
+      DISCOVERY_LISTENER_TOKEN, DISCOVERY_MUL_LISTENER_TOKEN, USER_TRAFFIC_LISTENER_TOKEN,
+      USER_TRAFFIC_MUL_LISTENER_TOKEN,
+    };
+    let without = DomainParticipantBuilder::new(test_domain_id(17))
+      .multicast(false)
+      .same_host_loopback(false)
+      .build()
+      .expect("participant without multicast");
+    let locators = without.self_locators();
+    assert!(!locators.contains_key(&DISCOVERY_MUL_LISTENER_TOKEN));
+    assert!(!locators.contains_key(&USER_TRAFFIC_MUL_LISTENER_TOKEN));
+    assert!(locators.contains_key(&DISCOVERY_LISTENER_TOKEN));
+    assert!(locators.contains_key(&USER_TRAFFIC_LISTENER_TOKEN));
+  }
+
+  // A participant that refuses remote participants (ROS_AUTOMATIC_DISCOVERY_RANGE=OFF)
+  // learns nothing of another one that announces itself to it, and the other
+  // learns nothing of its endpoints; two ordinary participants do (the control).
+  #[test]
+  fn a_participant_refusing_remote_participants_discovers_no_one() {
+    let domain = test_domain_id(18);
+    let alone = DomainParticipantBuilder::new(domain)
+      .remote_participants(false)
+      .build()
+      .expect("participant refusing others");
+    let other = DomainParticipant::new(domain).expect("participant");
+    let control = DomainParticipant::new(domain).expect("participant");
+    let qos = QosPolicies::qos_none();
+    let mut writers = Vec::new();
+    for dp in [&alone, &other] {
+      let topic = dp
+        .create_topic(
+          "refusal".to_string(),
+          "RandomData".to_string(),
+          &qos,
+          TopicKind::WithKey,
+        )
+        .unwrap();
+      let publisher = dp.create_publisher(&qos).unwrap();
+      writers.push(
+        publisher
+          .create_datawriter::<RandomData, CDRSerializerAdapter<RandomData, LittleEndian>>(
+            &topic, None,
+          )
+          .unwrap(),
+      );
+    }
+    let knows = |dp: &DomainParticipant, of: &DomainParticipant| {
+      dp.discovered_writers()
+        .iter()
+        .any(|w| w.writer_proxy.remote_writer_guid.prefix == of.guid().prefix)
+    };
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while !knows(&control, &other) && std::time::Instant::now() < deadline {
+      std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    assert!(
+      knows(&control, &other),
+      "control: two ordinary participants did not discover each other in 10 s"
+    );
+    // The refusing one had as long, and a second more.
+    std::thread::sleep(std::time::Duration::from_secs(1));
+    assert!(
+      !knows(&alone, &other),
+      "the refusing participant discovered another"
+    );
+    assert!(
+      !knows(&other, &alone),
+      "another participant learned the refusing one's writer"
+    );
+  }
+
   #[test]
   fn dp_writer_heartbeat_test() {
     let domain_participant =

@@ -1054,8 +1054,18 @@ impl Discovery {
     &mut self,
     participant_data: &SpdpDiscoveredParticipantData,
   ) {
-    let was_new = discovery_db_write(&self.discovery_db).update_participant(participant_data);
     let guid_prefix = participant_data.participant_guid.prefix;
+    if guid_prefix != self.domain_participant.guid().prefix
+      && !self
+        .domain_participant
+        .clone()
+        .upgrade()
+        .is_none_or(|dp| dp.accepts_remote_participants())
+    {
+      debug!("Ignoring participant {guid_prefix:?}: remote participants are refused");
+      return;
+    }
+    let was_new = discovery_db_write(&self.discovery_db).update_participant(participant_data);
 
     // Send notification to dp_event_loop. It will update local reader/writer
     // proxies as the SpdpDiscoveredParticipantData contains a bitmap of the

@@ -177,6 +177,27 @@ pub fn localhost_spdp_peer_locators(
     .collect()
 }
 
+/// Build the unicast SPDP locators of static peers (ROS 2's `ROS_STATIC_PEERS`):
+/// `addr:spdp_well_known_unicast_port(domain_id, pid)` for every address and
+/// every `pid` in `0..max_participants`, in that order.
+pub fn static_peer_spdp_locators(
+  peers: &[IpAddr],
+  domain_id: u16,
+  max_participants: u16,
+) -> Vec<Locator> {
+  peers
+    .iter()
+    .flat_map(|ip| {
+      (0..max_participants).map(move |pid| {
+        Locator::from(SocketAddr::new(
+          *ip,
+          crate::network::constant::spdp_well_known_unicast_port(domain_id, pid),
+        ))
+      })
+    })
+    .collect()
+}
+
 pub fn get_local_unicast_locators_filtered(
   port: u16,
   only_networks: Option<&[IpAddr]>,
@@ -291,7 +312,8 @@ mod tests {
 
   use super::{
     build_ifindex_map_inner, get_local_multicast_ip_addrs_inner, get_local_unicast_locators_inner,
-    localhost_spdp_peer_locators, path_mtu_payload_for_peer, IfAddr, InterfaceSelector,
+    localhost_spdp_peer_locators, path_mtu_payload_for_peer, static_peer_spdp_locators, IfAddr,
+    InterfaceSelector,
   };
   use crate::{
     network::constant::spdp_well_known_unicast_port,
@@ -533,6 +555,33 @@ mod tests {
       path_mtu_payload_for_peer(&[], v4(192, 168, 1, 1)),
       FALLBACK_MAX_AGGREGATED_DATAGRAM_SIZE
     );
+  }
+
+  // ROS_STATIC_PEERS: every participant slot of every peer, in order.
+  #[test]
+  fn static_peer_spdp_locators_cover_every_slot_of_each_peer() {
+    let peers = [
+      IpAddr::V4(Ipv4Addr::new(192, 168, 1, 20)),
+      IpAddr::V4(Ipv4Addr::new(10, 0, 0, 7)),
+    ];
+    // Domain 5: port 7400 + 250 * 5 + 10 + 2 * pid.
+    let got: Vec<String> = static_peer_spdp_locators(&peers, 5, 3)
+      .into_iter()
+      .map(|l| format!("{l:?}"))
+      .collect();
+    let want: Vec<String> = [
+      "192.168.1.20:8660",
+      "192.168.1.20:8662",
+      "192.168.1.20:8664",
+      "10.0.0.7:8660",
+      "10.0.0.7:8662",
+      "10.0.0.7:8664",
+    ]
+    .iter()
+    .map(|a| format!("{:?}", Locator::from(a.parse::<SocketAddr>().unwrap())))
+    .collect();
+    assert_eq!(got, want);
+    assert!(static_peer_spdp_locators(&[], 5, 3).is_empty());
   }
 
   #[test]

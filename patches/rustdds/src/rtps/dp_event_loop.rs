@@ -27,7 +27,9 @@ use crate::{
     constant::SPDP_LOCALHOST_PEER_COUNT,
     udp_listener::UDPListener,
     udp_sender::UDPSender,
-    util::{local_interface_table, localhost_spdp_peer_locators, IfAddr},
+    util::{
+      local_interface_table, localhost_spdp_peer_locators, static_peer_spdp_locators, IfAddr,
+    },
   },
   polling::{
     new_shared_timer, timeout_until, wake_channel, LoopWaker, ReadyReceiver, SharedTimer,
@@ -135,11 +137,25 @@ pub struct DPEventLoop {
   discovery_update_notification_receiver: WakeReceiver<DiscoveryNotificationType>,
   discovery_command_sender: WakeSender<DiscoveryCommand>,
 
-  // Same-host loopback feature (participant-builder `same_host_loopback` knob):
-  // when true, the SPDP writer announces to the localhost peers and writers may
-  // route same-host peers over loopback. See
-  // `src/rtps/loopback_same_host_design.md`.
-  same_host_loopback: bool,
+  // How far discovery reaches (participant-builder knobs): with
+  // `same_host_loopback` the SPDP writer announces to the localhost peers and
+  // writers may route same-host peers over loopback (see
+  // `src/rtps/loopback_same_host_design.md`); it announces to every static peer.
+  reach: DiscoveryReach,
+}
+
+/// How a participant finds others, from `DomainParticipantBuilder`.
+#[derive(Clone, Debug)]
+pub(crate) struct DiscoveryReach {
+  /// Announce to the localhost SPDP peers, prefer loopback for same-host peers.
+  pub same_host_loopback: bool,
+  /// Join the multicast groups (and so announce multicast locators).
+  pub multicast: bool,
+  /// Discover other participants at all (read by Discovery through the
+  /// participant).
+  pub remote_participants: bool,
+  /// Hosts to announce to by unicast SPDP.
+  pub static_peers: Vec<IpAddr>,
 }
 
 impl DPEventLoop {
@@ -163,7 +179,7 @@ impl DPEventLoop {
     security_plugins_opt: Option<SecurityPluginsHandle>,
     only_networks: Option<Arc<[IpAddr]>>,
     socket_send_buffer_size: usize,
-    same_host_loopback: bool,
+    reach: DiscoveryReach,
     reader_ready: ReadyReceiver<EntityId>,
     writer_ready: ReadyReceiver<EntityId>,
     waker: LoopWaker,
@@ -256,7 +272,7 @@ impl DPEventLoop {
       discovery_update_notification_receiver,
       participant_status_sender,
       discovery_command_sender,
-      same_host_loopback,
+      reach,
     })
   }
 
@@ -1112,15 +1128,23 @@ impl DPEventLoop {
     //   loopback multicast;
     // - every writer may route a confirmed same-host peer over loopback.
     // See `src/rtps/loopback_same_host_design.md`.
-    new_writer.set_prefer_loopback_same_host(self.same_host_loopback);
-    if self.same_host_loopback
-      && new_writer.guid().entity_id == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER
-    {
-      new_writer.set_extra_unicast_destinations(localhost_spdp_peer_locators(
+    // - the static peers get the same announcements at their addresses.
+    new_writer.set_prefer_loopback_same_host(self.reach.same_host_loopback);
+    if new_writer.guid().entity_id == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER {
+      let mut destinations = Vec::new();
+      if self.reach.same_host_loopback {
+        destinations.extend(localhost_spdp_peer_locators(
+          self.domain_info.domain_id,
+          self.domain_info.participant_id,
+          SPDP_LOCALHOST_PEER_COUNT,
+        ));
+      }
+      destinations.extend(static_peer_spdp_locators(
+        &self.reach.static_peers,
         self.domain_info.domain_id,
-        self.domain_info.participant_id,
         SPDP_LOCALHOST_PEER_COUNT,
       ));
+      new_writer.set_extra_unicast_destinations(destinations);
     }
 
     // The doorbell is a shared ready-queue plus the poll waker, not a
@@ -1343,7 +1367,12 @@ mod tests {
         None,
         None,
         0,
-        true,
+        DiscoveryReach {
+          same_host_loopback: true,
+          multicast: true,
+          remote_participants: true,
+          static_peers: Vec::new(),
+        },
         reader_ready,
         writer_ready,
         waker,
