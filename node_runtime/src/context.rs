@@ -121,9 +121,15 @@ pub fn context_from_env() -> Result<Context, RosError> {
 }
 
 /// A DDS context for a domain and discovery range, with the static peers of the
-/// environment's `ROS_STATIC_PEERS`. With LOCALHOST, DDS traffic stays on 127.0.0.1.
+/// environment's `ROS_STATIC_PEERS` (not read with OFF, which uses none). With LOCALHOST,
+/// DDS traffic stays on 127.0.0.1.
 pub fn context_for(domain: u16, range: DiscoveryRange) -> Result<Context, RosError> {
-    let peers = static_peers_from(|name| std::env::var(name).ok())?;
+    let peers = match range {
+        DiscoveryRange::Off => Vec::new(),
+        DiscoveryRange::Localhost | DiscoveryRange::Subnet => {
+            static_peers_from(|name| std::env::var(name).ok())?
+        }
+    };
     context_with_peers(domain, range, &peers)
 }
 

@@ -1793,11 +1793,18 @@ mod tests {
     );
   }
 
-  // DATA that a writer addresses to this reader before the reader has matched
-  // the writer (its discovery data still on the way) is delivered once the
-  // writer is matched. DATA to no particular reader is not kept.
-  #[test]
-  fn data_addressed_to_the_reader_before_the_match_is_delivered_at_the_match() {
+  // A reliable, stateful reader of a user topic, as the tests of this patch's
+  // changes need it: the reader, its topic cache, its QoS and what must stay alive
+  // beside it (the other ends of its channels).
+  struct ReliableTestReader {
+    reader: Reader,
+    reader_guid: GUID,
+    topic_cache_handle: Arc<Mutex<TopicCache>>,
+    reliable_qos: QosPolicies,
+    _channel_ends: Vec<Box<dyn std::any::Any>>,
+  }
+
+  fn reliable_test_reader() -> ReliableTestReader {
     let dds_cache = Arc::new(RwLock::new(DDSCache::new()));
     let topic_name = "test_name";
     let reliable_qos = QosPolicyBuilder::new()
@@ -1810,17 +1817,15 @@ mod tests {
       TypeDesc::new("test_type".to_string()),
       &reliable_qos,
     );
-    let (notification_sender, _notification_receiver) =
-      crate::mio_source::notification_channel(100);
-    let (_notification_event_source, notification_event_sender) =
+    let (notification_sender, notification_receiver) = crate::mio_source::notification_channel(100);
+    let (notification_event_source, notification_event_sender) =
       mio_source::make_poll_channel().unwrap();
-    let (status_sender, _status_receiver) = sync_status_channel::<DataReaderStatus>(4).unwrap();
-    let (participant_status_sender, _participant_status_receiver) =
-      sync_status_channel(16).unwrap();
-    let (_reader_command_sender, reader_command_receiver) =
+    let (status_sender, status_receiver) = sync_status_channel::<DataReaderStatus>(4).unwrap();
+    let (participant_status_sender, participant_status_receiver) = sync_status_channel(16).unwrap();
+    let (reader_command_sender, reader_command_receiver) =
       wake_channel::<ReaderCommand>(10, &LoopWaker::new());
     let reader_guid = GUID::dummy_test_guid(EntityKind::READER_NO_KEY_USER_DEFINED);
-    let mut reader = Reader::new(
+    let reader = Reader::new(
       ReaderIngredients {
         guid: reader_guid,
         notification_sender,
@@ -1839,6 +1844,33 @@ mod tests {
       new_shared_timer(),
       participant_status_sender,
     );
+    ReliableTestReader {
+      reader,
+      reader_guid,
+      topic_cache_handle,
+      reliable_qos,
+      _channel_ends: vec![
+        Box::new(notification_receiver),
+        Box::new(notification_event_source),
+        Box::new(status_receiver),
+        Box::new(participant_status_receiver),
+        Box::new(reader_command_sender),
+      ],
+    }
+  }
+
+  // DATA that a writer addresses to this reader before the reader has matched
+  // the writer (its discovery data still on the way) is delivered once the
+  // writer is matched. DATA to no particular reader is not kept.
+  #[test]
+  fn data_addressed_to_the_reader_before_the_match_is_delivered_at_the_match() {
+    let ReliableTestReader {
+      mut reader,
+      reader_guid,
+      topic_cache_handle,
+      reliable_qos,
+      _channel_ends,
+    } = reliable_test_reader();
 
     let writer_guid = GUID::new_with_prefix_and_id(
       GuidPrefix::new(&[7; 12]),
@@ -2023,47 +2055,13 @@ mod tests {
   // participants start together) learnt nothing of the writer for seconds.
   #[test]
   fn preemptive_acknack_on_match_has_the_form_fast_dds_answers() {
-    let dds_cache = Arc::new(RwLock::new(DDSCache::new()));
-    let topic_name = "test_name";
-    let reliable_qos = QosPolicyBuilder::new()
-      .reliability(Reliability::Reliable {
-        max_blocking_time: Duration::from_millis(100),
-      })
-      .build();
-    let topic_cache_handle = dds_cache.write().unwrap().add_new_topic(
-      topic_name.to_string(),
-      TypeDesc::new("test_type".to_string()),
-      &reliable_qos,
-    );
-    let (notification_sender, _notification_receiver) =
-      crate::mio_source::notification_channel(100);
-    let (_notification_event_source, notification_event_sender) =
-      mio_source::make_poll_channel().unwrap();
-    let (status_sender, _status_receiver) = sync_status_channel::<DataReaderStatus>(4).unwrap();
-    let (participant_status_sender, _participant_status_receiver) =
-      sync_status_channel(16).unwrap();
-    let (_reader_command_sender, reader_command_receiver) =
-      wake_channel::<ReaderCommand>(10, &LoopWaker::new());
-    let reader_guid = GUID::dummy_test_guid(EntityKind::READER_NO_KEY_USER_DEFINED);
-    let mut reader = Reader::new(
-      ReaderIngredients {
-        guid: reader_guid,
-        notification_sender,
-        status_sender,
-        topic_name: topic_name.to_string(),
-        topic_cache_handle,
-        like_stateless: false,
-        qos_policy: reliable_qos.clone(),
-        data_reader_command_receiver: reader_command_receiver,
-        data_reader_waker: Arc::new(Mutex::new(None)),
-        poll_event_sender: notification_event_sender,
-        security_plugins: None,
-        discovery_notify: None,
-      },
-      Rc::new(UDPSender::new(0).unwrap()),
-      new_shared_timer(),
-      participant_status_sender,
-    );
+    let ReliableTestReader {
+      mut reader,
+      reader_guid,
+      reliable_qos,
+      _channel_ends,
+      ..
+    } = reliable_test_reader();
 
     use crate::rtps::SubmessageBody;
 
