@@ -539,7 +539,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let c = planner.config();
             let stride = planner.stride();
             println!(
-                "planned {steps} steps of {:.3} m forward, {:.3} m left for {}: {} ticks at {} Hz, {:.2} s, base moved {:.3} m forward, {:.3} m left, minimum CoM margin {:.4} m (required {:.4} m)",
+                "planned {steps} steps of {:.3} m forward, {:.3} m left for {}: {} ticks at {} Hz, {:.2} s, base moved {:.3} m forward, {:.3} m left, minimum CoM margin {:.4} m (required {:.4} m), minimum ZMP margin {:.4} m (required {:.4} m)",
                 stride.forward_m,
                 stride.left_m,
                 planner.model().robot().name(),
@@ -549,7 +549,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 summary.distance_m,
                 summary.left_m,
                 summary.min_margin_m,
-                c.min_com_margin_m
+                c.min_com_margin_m,
+                summary.min_zmp_margin_m,
+                c.min_zmp_margin_m
             );
             for f in &summary.files {
                 println!("wrote {}", f.display());

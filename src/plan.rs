@@ -94,6 +94,8 @@ pub struct PlanSummary {
     pub left_m: f64,
     /// Smallest CoM margin (m).
     pub min_margin_m: f64,
+    /// Smallest margin of the planned (cart-table) ZMP (m).
+    pub min_zmp_margin_m: f64,
     /// Files written.
     pub files: Vec<PathBuf>,
 }
@@ -116,6 +118,10 @@ impl PlanSummary {
             min_margin_m: samples
                 .iter()
                 .map(|s| s.margin_m)
+                .fold(f64::INFINITY, f64::min),
+            min_zmp_margin_m: samples
+                .iter()
+                .map(|s| s.zmp_margin_m)
                 .fold(f64::INFINITY, f64::min),
             files: Vec::new(),
         }

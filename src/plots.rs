@@ -40,6 +40,8 @@ pub(crate) const RIGHT_COLOUR: RGBColor = RGBColor(214, 39, 40);
 /// The CoM floor path.
 pub(crate) const COM_COLOUR: RGBColor = RGBColor(20, 20, 20);
 /// The pelvis path.
+/// The planned ZMP's trace.
+pub(crate) const ZMP_COLOUR: RGBColor = RGBColor(255, 127, 14);
 pub(crate) const BASE_COLOUR: RGBColor = RGBColor(148, 103, 189);
 /// Start marker.
 pub(crate) const START_COLOUR: RGBColor = RGBColor(44, 160, 44);
@@ -196,6 +198,13 @@ fn min_margin_m(samples: &[GaitSample]) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+fn min_zmp_margin_m(samples: &[GaitSample]) -> f64 {
+    samples
+        .iter()
+        .map(|s| s.zmp_margin_m)
+        .fold(f64::INFINITY, f64::min)
+}
+
 fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<String> {
     const WIDTH_PX: u32 = 1400;
     let feet = planted_footprints(planner, samples);
@@ -207,12 +216,17 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
         .iter()
         .map(|s| (s.base_world.translation.x, s.base_world.translation.y))
         .collect();
+    let zmp_m: Vec<(f64, f64)> = samples
+        .iter()
+        .map(|s| (s.zmp_xy_m[0], s.zmp_xy_m[1]))
+        .collect();
     let corners = feet
         .iter()
         .flat_map(|f| f.corners_m.iter().map(|c| (c[0], c[1])));
     let window = Window::around(
         corners
             .chain(com_m.iter().copied())
+            .chain(zmp_m.iter().copied())
             .chain(base_m.iter().copied()),
     )
     .context("no finite positions to plot")?
@@ -224,16 +238,18 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
     let cfg = planner.config();
     let stride = planner.stride();
     let title = format!(
-        "Top view: {} of {:.0} mm forward, {:.0} mm left, {:.1}° turn, minimum CoM margin {:.1} mm (required {:.1} mm)",
+        "Top view: {} of {:.0} mm forward, {:.0} mm left, {:.1}° turn, minimum margins: CoM {:.1} mm (required {:.1}), ZMP {:.1} mm (required {:.1})",
         steps_text(step_count(samples)),
         stride.forward_m * 1e3,
         stride.left_m * 1e3,
         stride.turn_rad.to_degrees(),
         min_margin_m(samples) * 1e3,
-        cfg.min_com_margin_m * 1e3
+        cfg.min_com_margin_m * 1e3,
+        min_zmp_margin_m(samples) * 1e3,
+        cfg.min_zmp_margin_m * 1e3
     );
     let subtitle = format!(
-        "{}: footprints where a foot stood (numbered by the swing that put it there), CoM and pelvis paths; equal scales",
+        "{}: footprints where a foot stood (numbered by the swing that put it there), CoM, ZMP (cart-table model) and pelvis paths; equal scales",
         planner.model().robot().name()
     );
     render((WIDTH_PX, height_px), |root| {
@@ -259,6 +275,10 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
             BASE_COLOUR.stroke_width(2),
         ))?;
         chart.draw_series(LineSeries::new(
+            zmp_m.iter().copied(),
+            ZMP_COLOUR.stroke_width(1),
+        ))?;
+        chart.draw_series(LineSeries::new(
             com_m.iter().copied(),
             COM_COLOUR.stroke_width(2),
         ))?;
@@ -280,6 +300,7 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
                 LegendEntry::new(Swatch::Fill(LEFT_COLOUR), "left footprint"),
                 LegendEntry::new(Swatch::Fill(RIGHT_COLOUR), "right footprint"),
                 LegendEntry::new(Swatch::Line(COM_COLOUR), "CoM on the floor"),
+                LegendEntry::new(Swatch::Line(ZMP_COLOUR), "ZMP (planned)"),
                 LegendEntry::new(Swatch::Dashed(BASE_COLOUR), "pelvis (base link)"),
                 LegendEntry::new(Swatch::Dot(START_COLOUR, true), "start"),
                 LegendEntry::new(Swatch::Dot(COM_COLOUR, false), "end"),
@@ -1106,7 +1127,10 @@ mod tests {
         let text = |name: &str| std::fs::read_to_string(dir.join(name)).unwrap();
         let top = text("top_view.svg");
         assert!(
-            top.contains("x forward (m)") && top.contains("left footprint") && top.contains("L0")
+            top.contains("x forward (m)")
+                && top.contains("left footprint")
+                && top.contains("L0")
+                && top.contains("ZMP (planned)")
         );
         let swing = text("swing_curve.svg");
         assert!(swing.contains("first full step") && swing.contains("minimum-jerk"));

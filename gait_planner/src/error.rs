@@ -40,6 +40,26 @@ pub enum GaitError {
         /// The configured minimum (m).
         min_m: f64,
     },
+    /// The planned ZMP leaves the support polygon (or comes closer to its edge than the
+    /// minimum): the CoM accelerates too hard for the feet under it.
+    #[error(
+        "gait parameters refused: in phase `{phase}` ({detail}) at t = {t_s:.3} s the ZMP margin is {margin_m:.4} m, below the minimum {min_m:.4} m by {:.4} m (the CoM accelerates at {accel_m_s2:.3} m/s²; a longer phase or a shorter step accelerates less)",
+        min_m - margin_m
+    )]
+    ZmpOutside {
+        /// The phase.
+        phase: PhaseKind,
+        /// Which foot swings or what moves.
+        detail: String,
+        /// When, from the start of the check walk.
+        t_s: f64,
+        /// The ZMP margin found (m, negative outside).
+        margin_m: f64,
+        /// The configured minimum (m).
+        min_m: f64,
+        /// The CoM's horizontal acceleration then (m/s²).
+        accel_m_s2: f64,
+    },
     /// A planned ankle position the legs cannot reach (or only beyond a joint limit).
     #[error("gait parameters refused: in phase `{phase}` at t = {t_s:.3} s: {issue}")]
     Unreachable {

@@ -24,6 +24,7 @@ pub mod standing;
 mod stride;
 pub mod teleop;
 pub mod trajectory;
+pub mod zmp;
 
 pub use error::GaitError;
 pub use params::{GaitConfig, GaitParams};

@@ -21,7 +21,7 @@ pub mod auto {
     pub const FOOT_LIFT_PER_LEG: f64 = 0.12;
     /// Hip-pitch-axis to ankle-pitch-axis height while walking.
     pub const HIP_DROP_PER_LEG: f64 = 0.85;
-    /// Minimum CoM margin, as a fraction of the narrower sole side.
+    /// Minimum CoM margin and minimum ZMP margin, as a fraction of the narrower sole side.
     pub const MARGIN_PER_SOLE_WIDTH: f64 = 1.0 / 6.0;
     /// Longest backward step, as a fraction of the forward step length.
     pub const BACK_STEP_PER_STEP: f64 = 1.0;
@@ -68,6 +68,10 @@ pub struct GaitParams {
     /// Smallest allowed distance from the CoM's floor projection to the support polygon's
     /// edge (m). 0 = auto.
     pub min_com_margin_m: f64,
+    /// Smallest allowed distance from the planned ZMP (cart-table model: the CoM's floor
+    /// point moved by its acceleration, [`crate::zmp`]) to the support polygon's edge (m).
+    /// 0 = auto (the CoM margin's share of the sole).
+    pub min_zmp_margin_m: f64,
     /// Which foot swings first.
     pub first_foot: Side,
     /// Rise back to straight legs at the end of a walk.
@@ -92,6 +96,7 @@ impl Default for GaitParams {
             hip_height_m: 0.0,
             control_rate_hz: 100.0,
             min_com_margin_m: 0.0,
+            min_zmp_margin_m: 0.0,
             first_foot: Side::Left,
             rise_at_end: false,
             cmd_vel_timeout_s: 0.5,
@@ -287,6 +292,13 @@ impl GaitParams {
             min_com_margin_m: auto_or(
                 "min_com_margin_m",
                 self.min_com_margin_m,
+                auto::MARGIN_PER_SOLE_WIDTH * sole_width,
+                0.0,
+                sole_width,
+            )?,
+            min_zmp_margin_m: auto_or(
+                "min_zmp_margin_m",
+                self.min_zmp_margin_m,
                 auto::MARGIN_PER_SOLE_WIDTH * sole_width,
                 0.0,
                 sole_width,

@@ -14,7 +14,8 @@ use crate::error::GaitError;
 use crate::params::{GaitConfig, GaitParams};
 use crate::phase::{PhaseKind, Support, WalkRequest};
 use crate::stride::{Stride, StrideCommand, Velocity};
-use crate::trajectory::{min_jerk, swing_advance, swing_height};
+use crate::trajectory::{min_jerk, min_jerk_accel, swing_advance, swing_height};
+use crate::zmp::cart_table_zmp;
 
 /// Times closer than this are the same instant (s); far below any control period.
 const TIME_EPSILON_S: f64 = 1e-9;
@@ -52,6 +53,13 @@ pub struct GaitSample {
     /// Signed distance of the CoM's floor projection to the support polygon's edge (m),
     /// positive inside.
     pub margin_m: f64,
+    /// Planned acceleration of the CoM (m/s²): the phase's min-jerk profile, exact for the
+    /// CoM-driven phases (shifts, swings, centring); the pelvis's for the crouch and the rise.
+    pub com_accel_m_s2: Vector3<f64>,
+    /// The cart-table ZMP of the planned CoM motion on the floor (m): see [`crate::zmp`].
+    pub zmp_xy_m: Xy,
+    /// Its signed distance to the support polygon's edge (m), positive inside.
+    pub zmp_margin_m: f64,
     /// What the IK had to clamp (empty for a valid plan).
     pub issues: Vec<IkIssue>,
 }
@@ -683,6 +691,38 @@ impl GaitPlanner {
         })
     }
 
+    /// The CoM's acceleration at progress `p` of the current pelvis-driven phase (m/s²):
+    /// the central second difference of the CoM of the poses one control period before
+    /// and after. The legs bend as the pelvis moves, so the CoM does not follow the
+    /// pelvis's profile; from straight legs the knees even start forward like √t (a crouch
+    /// has an infinite CoM acceleration at its start in the limit), so the difference is
+    /// taken over the period at which the targets change.
+    fn pelvis_drive_com_accel(
+        &mut self,
+        p: f64,
+        com: Point3<f64>,
+    ) -> Result<Vector3<f64>, GaitError> {
+        let h_s = self.cfg.dt_s();
+        let ph = self.phase.clone();
+        let Drive::Base { from, to } = ph.drive else {
+            return Ok(Vector3::zeros());
+        };
+        let dp = h_s / ph.duration_s;
+        let mut com_at = |q: f64| -> Result<Point3<f64>, GaitError> {
+            // min_jerk holds still outside [0, 1], as the robot does before and after.
+            let r = min_jerk(q);
+            let lerp = |a: f64, b: f64| a + (b - a) * r;
+            let base = [lerp(from[0], to[0]), lerp(from[1], to[1])];
+            let z = lerp(ph.base_z_from, ph.base_z_to);
+            let yaw = lerp(ph.base_yaw_from, ph.base_yaw_to);
+            Ok(self
+                .posture(base, z, yaw, &ph.feet_from, &ph.feet_yaw_from)?
+                .com)
+        };
+        let (before, after) = (com_at(p - dp)?, com_at(p + dp)?);
+        Ok((before.coords - 2.0 * com.coords + after.coords) / (h_s * h_s))
+    }
+
     /// Finds the pelvis (x, y) that puts the whole-body CoM over `com_goal`, by secant steps
     /// per axis from the last tick's pelvis (the CoM moves almost linearly with the pelvis,
     /// a little less since the feet stay put).
@@ -820,6 +860,12 @@ impl GaitPlanner {
             1.0
         };
         let r = min_jerk(p);
+        // d²r/dt² (1/s²): the profile's second derivative over the duration squared.
+        let r_dd = if ph.duration_s > 0.0 && ph.duration_s.is_finite() {
+            min_jerk_accel(p) / (ph.duration_s * ph.duration_s)
+        } else {
+            0.0
+        };
         let (feet, feet_yaw) = self.swing_feet(p);
         let base_z = ph.base_z_from + (ph.base_z_to - ph.base_z_from) * r;
         let base_yaw = ph.base_yaw_from + (ph.base_yaw_to - ph.base_yaw_from) * r;
@@ -836,6 +882,22 @@ impl GaitPlanner {
         self.com_xy = [posture.com.x, posture.com.y];
         let support = ph.support();
         let poly = self.support_polygon(support, &feet, &feet_yaw);
+        // A CoM drive moves the CoM along the phase's profile; a pelvis drive moves the
+        // pelvis so, and the CoM as the bending legs make it.
+        let com_accel_m_s2 = match ph.drive {
+            Drive::Com { from, to } => Vector3::new(
+                (to[0] - from[0]) * r_dd,
+                (to[1] - from[1]) * r_dd,
+                (ph.base_z_to - ph.base_z_from) * r_dd,
+            ),
+            Drive::Base { from, to }
+                if from == to && ph.base_z_from == ph.base_z_to || !ph.duration_s.is_finite() =>
+            {
+                Vector3::zeros()
+            }
+            Drive::Base { .. } => self.pelvis_drive_com_accel(p, posture.com)?,
+        };
+        let zmp_xy_m = cart_table_zmp(posture.com, com_accel_m_s2);
         self.planted = match (ph.kind, ph.side) {
             (PhaseKind::Shift, Some(onto)) => onto,
             (kind, Some(swing)) if kind.is_swing() => swing.other(),
@@ -855,6 +917,9 @@ impl GaitPlanner {
             joints_rad: posture.q,
             com_world_m: posture.com,
             margin_m: signed_margin(&poly, self.com_xy),
+            com_accel_m_s2,
+            zmp_xy_m,
+            zmp_margin_m: signed_margin(&poly, zmp_xy_m),
             issues: posture.issues,
         })
     }
@@ -1098,18 +1163,28 @@ impl GaitPlanner {
                     t_s: s.t_s,
                 });
             }
+            let detail = || match s.support {
+                Support::Double => "both feet on the floor".to_string(),
+                Support::Left => "right foot swinging".to_string(),
+                Support::Right => "left foot swinging".to_string(),
+            };
             if s.margin_m < self.cfg.min_com_margin_m {
-                let detail = match s.support {
-                    Support::Double => "both feet on the floor".to_string(),
-                    Support::Left => "right foot swinging".to_string(),
-                    Support::Right => "left foot swinging".to_string(),
-                };
                 return Err(GaitError::Unstable {
                     phase: s.phase,
-                    detail,
+                    detail: detail(),
                     t_s: s.t_s,
                     margin_m: s.margin_m,
                     min_m: self.cfg.min_com_margin_m,
+                });
+            }
+            if s.zmp_margin_m < self.cfg.min_zmp_margin_m {
+                return Err(GaitError::ZmpOutside {
+                    phase: s.phase,
+                    detail: detail(),
+                    t_s: s.t_s,
+                    margin_m: s.zmp_margin_m,
+                    min_m: self.cfg.min_zmp_margin_m,
+                    accel_m_s2: s.com_accel_m_s2.xy().norm(),
                 });
             }
             if k > 0 {

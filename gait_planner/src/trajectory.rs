@@ -39,3 +39,23 @@ pub fn swing_height(p: f64) -> f64 {
 pub fn swing_advance(p: f64) -> f64 {
     min_jerk((p - SWING_LIFT_FRACTION) / (1.0 - 2.0 * SWING_LIFT_FRACTION))
 }
+
+/// First derivative of [`min_jerk`] with respect to `p`: `30p²(1-p)²`; 0 outside [0, 1].
+/// Peak 15/8 at p = 1/2: a phase of duration T moving a distance D peaks at 1.875 D/T.
+pub fn min_jerk_rate(p: f64) -> f64 {
+    if !(0.0..=1.0).contains(&p) {
+        return 0.0;
+    }
+    let q = p * (1.0 - p);
+    30.0 * q * q
+}
+
+/// Second derivative of [`min_jerk`] with respect to `p`: `60p - 180p² + 120p³`; 0 outside
+/// [0, 1]. Peaks ±10/√3 (±5.774) at p = 1/2 ∓ √3/6: a phase of duration T moving a distance
+/// D accelerates at most 5.774 D/T².
+pub fn min_jerk_accel(p: f64) -> f64 {
+    if !(0.0..=1.0).contains(&p) {
+        return 0.0;
+    }
+    p * (60.0 + p * (-180.0 + 120.0 * p))
+}

@@ -71,18 +71,18 @@ fn n_steps_advance_n_step_lengths_and_end_feet_together() {
 #[test]
 fn phases_last_their_configured_durations() {
     let p = GaitParams {
-        step_duration_s: 0.8,
-        shift_duration_s: 0.6,
+        step_duration_s: 0.7,
+        shift_duration_s: 0.9,
         crouch_duration_s: 0.5,
         ..GaitParams::default()
     };
     let samples = plan(2, p);
     // 100 Hz; each phase's ticks are (start, end], the crouch also has its t = 0 tick.
     assert_eq!(phase_ticks(&samples, PhaseKind::Crouch), 51);
-    assert_eq!(phase_ticks(&samples, PhaseKind::HalfStep), 80);
-    assert_eq!(phase_ticks(&samples, PhaseKind::Step), 80);
-    assert_eq!(phase_ticks(&samples, PhaseKind::Shift), 3 * 60);
-    assert_eq!(phase_ticks(&samples, PhaseKind::Center), 60);
+    assert_eq!(phase_ticks(&samples, PhaseKind::HalfStep), 70);
+    assert_eq!(phase_ticks(&samples, PhaseKind::Step), 70);
+    assert_eq!(phase_ticks(&samples, PhaseKind::Shift), 3 * 90);
+    assert_eq!(phase_ticks(&samples, PhaseKind::Center), 90);
 }
 
 /// Walks until stopped, sends Stop at `stop_at_s`, runs until idle.

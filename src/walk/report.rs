@@ -52,6 +52,11 @@ pub struct WalkSummary {
     pub planned_min_com_margin_m: f64,
     /// The margin the planner was asked to keep (m).
     pub required_com_margin_m: f64,
+    /// Smallest margin of the planned (cart-table) ZMP to the planned support polygon (m);
+    /// per phase in `min_cop_margin_per_phase`, beside the measured CoP's.
+    pub planned_min_zmp_margin_m: f64,
+    /// The ZMP margin the planner was asked to keep (m).
+    pub required_zmp_margin_m: f64,
     /// Largest difference between a measured leg joint and the command of the same tick
     /// during the walk (rad): the servos' lag and sag after compensation.
     pub max_joint_tracking_error_rad: f64,
@@ -211,7 +216,9 @@ pub fn summarize(
         }
         _ => [0.0, 0.0],
     };
-    let measured = monitor.report_at(t_end, &base_end, planned_m);
+    let measured = monitor
+        .report_at(t_end, &base_end, planned_m)
+        .with_planned_zmp(plan);
     let (odometry_error_m, odometry_yaw_error_deg) = match &odometry {
         Some(odo) => {
             let e = odo.base().translation.vector - base_end.translation.vector;
@@ -242,6 +249,11 @@ pub fn summarize(
             .map(|s| s.margin_m)
             .fold(f64::INFINITY, f64::min),
         required_com_margin_m: c.min_com_margin_m,
+        planned_min_zmp_margin_m: plan
+            .iter()
+            .map(|s| s.zmp_margin_m)
+            .fold(f64::INFINITY, f64::min),
+        required_zmp_margin_m: c.min_zmp_margin_m,
         measured,
         max_joint_tracking_error_rad: worst_err,
         max_joint_tracking_error_joint: worst_joint,

@@ -138,6 +138,10 @@ pub struct PhaseMargin {
     pub min_cop_margin_m: f64,
     /// Physics steps measured in this phase with a centre of pressure.
     pub samples: u64,
+    /// Smallest margin of the planned (cart-table) ZMP in this phase kind (m), when the
+    /// report was given the plan ([`WalkReport::with_planned_zmp`]): the margin the plan
+    /// promised against the one measured.
+    pub planned_min_zmp_margin_m: Option<f64>,
 }
 
 /// A fall, as reported.
@@ -185,6 +189,21 @@ pub struct WalkReport {
     pub cop_samples: u64,
     /// Smallest centre-of-pressure margin per phase kind, in order of first appearance.
     pub min_cop_margin_per_phase: Vec<PhaseMargin>,
+}
+
+impl WalkReport {
+    /// The report with each phase kind's smallest planned ZMP margin beside its measured
+    /// CoP margin.
+    pub fn with_planned_zmp(mut self, plan: &[GaitSample]) -> Self {
+        for p in &mut self.min_cop_margin_per_phase {
+            p.planned_min_zmp_margin_m = plan
+                .iter()
+                .filter(|s| s.phase == p.phase)
+                .map(|s| s.zmp_margin_m)
+                .reduce(f64::min);
+        }
+        self
+    }
 }
 
 /// Heading of a pose on the floor: the angle of its x axis from the world's x, counter-
@@ -316,6 +335,7 @@ impl WalkMonitor {
                     phase,
                     min_cop_margin_m: margin,
                     samples: 1,
+                    planned_min_zmp_margin_m: None,
                 }),
             }
         }
@@ -439,7 +459,7 @@ pub fn run_plan(
             break;
         }
     }
-    Ok(monitor.report(sim, planned_m))
+    Ok(monitor.report(sim, planned_m).with_planned_zmp(plan))
 }
 
 /// How far `to` is from `start`, `[forward, left]` of the start's heading on the floor (m).
