@@ -125,6 +125,12 @@ enum Command {
         /// Record the walk's topics into this rosbag2 bag folder (MCAP; must not exist).
         #[arg(long, value_name = "DIR")]
         bag: Option<PathBuf>,
+        /// Stop anywhere, measured: at these instants (simulated seconds from the walk's
+        /// start, comma-separated) call the joint bridge's `~/estop` (std_srvs/Trigger, as
+        /// an operator would); after 2.5 s call `~/reset` and the walk goes on. report.json's
+        /// `estops` gives, per stop, how far each loaded sole and the base moved while held.
+        #[arg(long, value_name = "S,...", value_delimiter = ',')]
+        estop_at: Vec<f64>,
     },
     /// Record topics into a rosbag2 bag (Jazzy format, MCAP or sqlite3) until Ctrl-C,
     /// SIGTERM or --duration.
@@ -224,6 +230,12 @@ enum Command {
         /// Write no pictures.
         #[arg(long, conflicts_with = "plots")]
         no_plots: bool,
+        /// Plan with the fastest timing the checks allow (shift, step and crouch durations
+        /// found by time scaling the parameter file's walk against the joint speed limits
+        /// and the ZMP margin, then verified by the check walks), and print it. A planning
+        /// answer, not a physics one: `biped walk` tells whether the robot keeps up.
+        #[arg(long)]
+        fastest: bool,
     },
 }
 
@@ -417,10 +429,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             real_time,
             settle,
             bag,
+            estop_at,
         } => {
             if !(settle.is_finite() && (0.0..=60.0).contains(&settle)) {
                 anyhow::bail!("--settle {settle}: must be within [0, 60] s");
             }
+            let mut estop_at_s = estop_at;
+            if let Some(bad) = estop_at_s.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
+                anyhow::bail!(
+                    "--estop-at {bad}: each instant must be a finite number of seconds >= 0"
+                );
+            }
+            estop_at_s.sort_by(f64::total_cmp);
             let outcome = walk::walk(&walk::WalkOptions {
                 steps,
                 velocity: twist,
@@ -434,6 +454,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 tail_s: 2.0,
                 stall_s: 30.0,
                 bag,
+                estop_at_s,
             })?;
             let r = &outcome.report;
             let m = &r.measured;
@@ -451,6 +472,18 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 m.cop_inside_fraction * 100.0,
                 r.real_time_factor
             );
+            if let (Some(sole), Some(base)) = (
+                r.stop_anywhere_worst_sole_m,
+                r.stop_anywhere_worst_base_late_m,
+            ) {
+                println!(
+                    "{} e-stops: a loaded sole moved at most {:.2} mm, the base {:.2} mm from 0.5 s to {} s after the call",
+                    r.estops.len(),
+                    sole * 1e3,
+                    base * 1e3,
+                    walk::report::ESTOP_WINDOW_S
+                );
+            }
             for f in &outcome.files {
                 println!("wrote {}", f.display());
             }
@@ -518,9 +551,27 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             csv,
             plots,
             no_plots,
+            fastest,
         } => {
             let model = load_model(&robot)?;
-            let params = load_params(&robot)?;
+            let mut params = load_params(&robot)?;
+            if fastest {
+                let started = std::time::Instant::now();
+                let f = gait_planner::timing::fastest_timing(&model, &params)?;
+                let t = f.timing;
+                println!(
+                    "fastest timing: shift {:.2} s ({:?}), step {:.2} s ({:?}), crouch {:.2} s ({:?}); found in {:.2} s ({} checked planners)",
+                    t.shift_duration_s,
+                    f.bound[0],
+                    t.step_duration_s,
+                    f.bound[1],
+                    t.crouch_duration_s,
+                    f.bound[2],
+                    started.elapsed().as_secs_f64(),
+                    f.checks
+                );
+                params = f.params;
+            }
             let mut planner = GaitPlanner::new(model, params)?;
             if let Some(v) = twist {
                 plan::apply_twist(&mut planner, v)?;

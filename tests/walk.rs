@@ -1,6 +1,6 @@
 //! `biped walk`, the main job: the fleet (gait_planner, ik_solver, joint_bridge with the sim
 //! backend) and sim_bridge (MuJoCo) over DDS, in lockstep on simulated time. Each run is in a
-//! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 65-69, 75-78), with
+//! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 65-69, 75-78, 86, 96), with
 //! discovery restricted to this host by `biped walk` itself.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -385,4 +385,93 @@ fn the_op3_layout_robot_walks_ten_steps_through_the_fleet_in_its_own_scene() {
     let tilt = num(&r, "max_tilt_deg");
     assert!(tilt < 5.0, "tilt {tilt} deg");
     let _ = std::fs::remove_dir_all(&out);
+}
+
+/// `n` instants in [from, to) (s) from a seeded xorshift64*, sorted, comma-separated.
+fn random_instants(seed: u64, n: usize, from: f64, to: f64) -> String {
+    let mut x = seed;
+    let mut v: Vec<f64> = (0..n)
+        .map(|_| {
+            x ^= x >> 12;
+            x ^= x << 25;
+            x ^= x >> 27;
+            let u = (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64;
+            from + u * (to - from)
+        })
+        .collect();
+    v.sort_by(f64::total_cmp);
+    v.iter()
+        .map(|t| format!("{t:.2}"))
+        .collect::<Vec<_>>()
+        .join(",")
+}
+
+/// Stop anywhere, through the fleet: an operator's e-stop (the joint bridge's `~/estop`,
+/// called over DDS by `biped walk --estop-at`) at 20 seeded random instants of a walk; each
+/// holds 2.5 s, then `~/reset` and the walk goes on where it paused. Every e-stop is
+/// answered within 0.3 s of simulated time and measured; the robot never falls and is at
+/// rest (base within 5 mm) from 0.5 s after each call; the walk still covers its planned
+/// distance. How far the loaded soles move is printed and in BENCHMARKS.md ("Stop
+/// anywhere through the fleet"), not asserted: at 3 mm worst it is above the 2 mm the
+/// issue asks for (#16: the servos' lag is released when the bridge holds).
+fn stops_anywhere_through_the_fleet(
+    name: &str,
+    domain: u32,
+    args: &[&str],
+    seed: u64,
+    walk_s: f64,
+) {
+    let out = out_dir(name);
+    let instants = random_instants(seed, 20, 0.2, walk_s - 0.2);
+    let mut all: Vec<&str> = args.to_vec();
+    all.extend(["--estop-at", &instants]);
+    let run = walk(domain, &out, &all);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let r = report(&out);
+    let estops = r["estops"].as_array().unwrap();
+    for e in estops {
+        eprintln!("{e}");
+    }
+    assert!(r["fell"].is_null());
+    assert_eq!(estops.len(), 20, "{instants}");
+    let asked: Vec<f64> = instants.split(',').map(|t| t.parse().unwrap()).collect();
+    let mut loaded_soles = 0;
+    for (e, t_asked) in estops.iter().zip(&asked) {
+        let t = num(e, "t_s");
+        // Called at the first tick at or after its instant of walk time.
+        assert!(
+            t >= t_asked - 1e-6 && t < t_asked + 0.05,
+            "asked {t_asked}, called {t}"
+        );
+        assert!(num(e, "answer_delay_s") < 0.3, "t {t}: answered late: {e}");
+        loaded_soles += (0..2)
+            .filter(|&k| e["loaded"][k].as_bool().unwrap())
+            .count();
+        assert!(num(e, "base_late_m") < 0.005, "t {t}: base moved: {e}");
+    }
+    assert!(loaded_soles >= 20, "{loaded_soles} loaded soles measured");
+    let worst = num(&r, "stop_anywhere_worst_sole_m");
+    assert!(worst > 0.0 && worst < 0.02, "worst loaded sole {worst} m");
+    let (d, planned) = (num(&r, "distance_m"), num(&r, "planned_distance_m"));
+    assert!(
+        (d - planned).abs() < 0.1 * planned,
+        "walked {d} m of {planned} m"
+    );
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn the_default_robot_stops_anywhere_through_the_fleet() {
+    // 10 steps at the defaults: 36 s of walk.
+    stops_anywhere_through_the_fleet(
+        "stop-anywhere",
+        96,
+        &["--steps", "10"],
+        0x5EED_2026_1127_0001,
+        36.0,
+    );
 }

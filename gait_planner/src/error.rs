@@ -118,3 +118,20 @@ pub enum GaitError {
     #[error("walk request refused: {0}")]
     Request(String),
 }
+
+impl GaitError {
+    /// The phase of the check walk that failed, for refusals that have one.
+    pub fn phase(&self) -> Option<PhaseKind> {
+        match self {
+            Self::Unstable { phase, .. }
+            | Self::ZmpOutside { phase, .. }
+            | Self::Unreachable { phase, .. }
+            | Self::TooFast { phase, .. }
+            | Self::SolesOverlap { phase, .. } => Some(*phase),
+            Self::StepLimit { cause, .. } => cause.phase(),
+            Self::Param { .. } | Self::ParamFile { .. } | Self::Time { .. } | Self::Request(_) => {
+                None
+            }
+        }
+    }
+}

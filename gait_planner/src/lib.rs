@@ -23,6 +23,7 @@ pub mod schedule;
 pub mod standing;
 mod stride;
 pub mod teleop;
+pub mod timing;
 pub mod trajectory;
 pub mod zmp;
 

@@ -217,24 +217,12 @@ impl GaitPlanner {
             |v| vec![Stride::forward(-v)],
         )?;
         self.cfg.back_step_length_m = back;
-        let (fwd, diag) = (self.cfg.step_length_m, std::f64::consts::FRAC_1_SQRT_2);
+        let fwd = self.cfg.step_length_m;
         let side = self.settle_limit(
             "side_step_m",
             params.side_step_m == 0.0,
             self.cfg.side_step_m,
-            |v| {
-                [1.0, -1.0]
-                    .into_iter()
-                    .flat_map(|sign| {
-                        let left_m = sign * v;
-                        [(0.0, 1.0), (fwd, diag), (-back, diag)].map(|(x, k)| Stride {
-                            forward_m: x * k,
-                            left_m: left_m * k,
-                            turn_rad: 0.0,
-                        })
-                    })
-                    .collect()
-            },
+            |v| side_strides(v, fwd, back),
         )?;
         self.cfg.side_step_m = side;
         if self.cfg.turn_step_rad > 0.0 {
@@ -242,31 +230,34 @@ impl GaitPlanner {
                 "turn_step_rad",
                 params.turn_step_rad == 0.0,
                 self.cfg.turn_step_rad,
-                |v| {
-                    [1.0, -1.0]
-                        .into_iter()
-                        .flat_map(|sign| {
-                            let t = sign * v;
-                            // A turn in place, an arc, and a turn with a side step either way.
-                            [
-                                (0.0, 0.0, 1.0),
-                                (fwd, 0.0, diag),
-                                (0.0, side, diag),
-                                (0.0, -side, diag),
-                            ]
-                            .map(|(x, y, k)| Stride {
-                                forward_m: x * k,
-                                left_m: y * k,
-                                turn_rad: t * k,
-                            })
-                        })
-                        .collect()
-                },
+                |v| turn_strides(v, fwd, side),
             )?;
             self.cfg.turn_step_rad = turn;
         }
         self.stride = Stride::forward(self.cfg.step_length_m);
         Ok(())
+    }
+
+    /// The strides of the check walks of [`Self::new`], at the settled step limits.
+    pub(crate) fn check_strides(&self) -> Vec<Stride> {
+        let c = &self.cfg;
+        let mut out = vec![
+            Stride::forward(c.step_length_m),
+            Stride::forward(-c.back_step_length_m),
+        ];
+        out.extend(side_strides(
+            c.side_step_m,
+            c.step_length_m,
+            c.back_step_length_m,
+        ));
+        if c.turn_step_rad > 0.0 {
+            out.extend(turn_strides(
+                c.turn_step_rad,
+                c.step_length_m,
+                c.side_step_m,
+            ));
+        }
+        out
     }
 
     /// A step limit whose check walks all pass: the value itself, or for an auto value
@@ -1138,10 +1129,15 @@ impl GaitPlanner {
     /// refuses parameters that leave the CoM margin below the minimum, need an unreachable
     /// ankle position or a joint limit, or move a joint faster than its limit.
     fn check_walk(&self, stride: Stride) -> Result<(), GaitError> {
+        let samples = self.plan_stride(stride)?;
+        self.check_samples(&samples)
+    }
+
+    /// The check walk of one stride, not checked: three steps from the initial pose.
+    pub(crate) fn plan_stride(&self, stride: Stride) -> Result<Vec<GaitSample>, GaitError> {
         let mut check = Self::unchecked(self.model.clone(), self.cfg.clone());
         check.stride = stride;
-        let samples = check.plan(WalkRequest::Steps(3))?;
-        self.check_samples(&samples)
+        check.plan(WalkRequest::Steps(3))
     }
 
     /// The checks of a check walk on consecutive samples: no clamped joint, no overlapping
@@ -1241,6 +1237,46 @@ impl GaitPlanner {
         }
         Ok(out)
     }
+}
+
+/// The side-step check strides at a side step of `v`: alone and together with the longest
+/// forward or backward step, either way (combinations at 1/√2 of each).
+fn side_strides(v: f64, fwd: f64, back: f64) -> Vec<Stride> {
+    let diag = std::f64::consts::FRAC_1_SQRT_2;
+    [1.0, -1.0]
+        .into_iter()
+        .flat_map(|sign| {
+            let left_m = sign * v;
+            [(0.0, 1.0), (fwd, diag), (-back, diag)].map(|(x, k)| Stride {
+                forward_m: x * k,
+                left_m: left_m * k,
+                turn_rad: 0.0,
+            })
+        })
+        .collect()
+}
+
+/// The turn check strides at a turn of `v`: in place, in an arc, and with a side step
+/// either way (combinations at 1/√2 of each).
+fn turn_strides(v: f64, fwd: f64, side: f64) -> Vec<Stride> {
+    let diag = std::f64::consts::FRAC_1_SQRT_2;
+    [1.0, -1.0]
+        .into_iter()
+        .flat_map(|sign| {
+            let t = sign * v;
+            [
+                (0.0, 0.0, 1.0),
+                (fwd, 0.0, diag),
+                (0.0, side, diag),
+                (0.0, -side, diag),
+            ]
+            .map(|(x, y, k)| Stride {
+                forward_m: x * k,
+                left_m: y * k,
+                turn_rad: t * k,
+            })
+        })
+        .collect()
 }
 
 /// Plans `steps` steps of the default walk for a robot and parameters: the samples of every

@@ -74,6 +74,22 @@ impl BipedModel {
                 )
     }
 
+    /// The four bottom corners of a sole in the world for link poses `poses` (m), in the
+    /// order of [`crate::legs::SoleRect::corners`].
+    pub fn sole_corners_world(&self, poses: &[Isometry3<f64>], side: Side) -> [Point3<f64>; 4] {
+        let leg = self.leg(side);
+        let ankle = leg.ankle_world(self.robot(), poses);
+        let turn = poses[leg.foot_link].rotation * leg.foot_rotation0.inverse();
+        let r = &leg.sole;
+        [
+            (r.x_min_m, r.y_min_m),
+            (r.x_max_m, r.y_min_m),
+            (r.x_max_m, r.y_max_m),
+            (r.x_min_m, r.y_max_m),
+        ]
+        .map(|(x, y)| ankle + turn * Vector3::new(x, y, -leg.ankle_to_sole_m))
+    }
+
     /// The stance a pose stands on, the floor being horizontal under a level base: the
     /// lower sole, or both when their centres are within [`DOUBLE_SUPPORT_TOLERANCE_M`] of the
     /// same height.

@@ -60,7 +60,14 @@ pub struct WalkOptions {
     /// Record every topic of the walk into this rosbag2 bag (MCAP), from before the fleet
     /// starts until it stops.
     pub bag: Option<PathBuf>,
+    /// Instants (s from the walk's start, sorted) at which to call the joint bridge's
+    /// `~/estop`, each released by `~/reset` [`ESTOP_HOLD_S`] later.
+    pub estop_at_s: Vec<f64>,
 }
+
+/// How long each `--estop-at` stop holds before `~/reset` (s of simulated time); the
+/// report measures the first [`report::ESTOP_WINDOW_S`] of it.
+pub const ESTOP_HOLD_S: f64 = 2.5;
 
 /// The walk's outcome: the report and the files written.
 #[derive(Debug)]
@@ -120,6 +127,104 @@ fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
     }
     serde_norway::from_value(serde_norway::Value::Mapping(map))
         .with_context(|| format!("gait_planner parameters in {}", path.display()))
+}
+
+type TriggerClient =
+    ros2_client::Client<biped_msgs::srv::TriggerRequest, biped_msgs::srv::TriggerResponse>;
+
+/// A client of the joint bridge's `~/<name>` std_srvs/Trigger service.
+fn trigger_client(node: &mut ros2_client::Node, name: &str) -> anyhow::Result<TriggerClient> {
+    use biped_msgs::srv::{RosService, Trigger};
+    let qos = node_runtime::qos::service();
+    let service = ros2_client::Name::new("/joint_bridge", name)
+        .map_err(|e| anyhow::anyhow!("service name /joint_bridge/{name}: {e:?}"))?;
+    node.create_client(
+        ros2_client::ServiceMapping::Enhanced,
+        &service,
+        &Trigger::service_type_name(),
+        qos.clone(),
+        qos,
+    )
+    .map_err(|e| anyhow::anyhow!("client of /joint_bridge/{name}: {e:?}"))
+}
+
+/// Where the e-stops of `--estop-at` are.
+enum EstopState {
+    /// Waiting for the next instant.
+    Idle,
+    /// `~/estop` sent, not answered yet.
+    Asked(ros2_client::RmwRequestId),
+    /// Holding since the answer.
+    Holding,
+    /// `~/reset` sent, not answered yet.
+    Resetting(ros2_client::RmwRequestId),
+}
+
+/// Calls `~/estop` at each instant and `~/reset` [`ESTOP_HOLD_S`] after its answer.
+struct EstopDriver {
+    /// The instants, in simulated time had nothing held (ns): each hold (the planner
+    /// pauses) puts the later ones off by its length.
+    at_ns: std::collections::VecDeque<i64>,
+    estop: TriggerClient,
+    reset: TriggerClient,
+    state: EstopState,
+}
+
+impl EstopDriver {
+    fn poll(&mut self, rec: &mut Recording) -> anyhow::Result<()> {
+        let now = rec.clock_ns;
+        // Walk time stands still from the call to the reset's answer.
+        let held_ns: i64 = rec
+            .estops
+            .iter()
+            .filter_map(|e| e.reset_ns.map(|r| r - e.requested_ns))
+            .sum();
+        let answered = |c: &TriggerClient, id: &ros2_client::RmwRequestId| matches!(c.receive_response(), Ok(Some((got, _))) if got == *id);
+        match &self.state {
+            EstopState::Idle => {
+                if self.at_ns.front().is_some_and(|&t| now - held_ns >= t) {
+                    self.at_ns.pop_front();
+                    let id = self
+                        .estop
+                        .send_request(Default::default())
+                        .map_err(|e| anyhow::anyhow!("call /joint_bridge/estop: {e:?}"))?;
+                    rec.estops.push(record::EstopEvent {
+                        requested_ns: now,
+                        answered_ns: None,
+                        reset_ns: None,
+                    });
+                    self.state = EstopState::Asked(id);
+                }
+            }
+            EstopState::Asked(id) => {
+                if answered(&self.estop, id) {
+                    if let Some(e) = rec.estops.last_mut() {
+                        e.answered_ns = Some(now);
+                    }
+                    self.state = EstopState::Holding;
+                }
+            }
+            EstopState::Holding => {
+                let since = rec.estops.last().and_then(|e| e.answered_ns).unwrap_or(now);
+                if now >= since + (ESTOP_HOLD_S * 1e9).round() as i64 {
+                    let id = self
+                        .reset
+                        .send_request(Default::default())
+                        .map_err(|e| anyhow::anyhow!("call /joint_bridge/reset: {e:?}"))?;
+                    self.state = EstopState::Resetting(id);
+                }
+            }
+            EstopState::Resetting(id) => {
+                if answered(&self.reset, id) {
+                    if let Some(e) = rec.estops.last_mut() {
+                        e.reset_ns = Some(now);
+                    }
+                    self.state = EstopState::Idle;
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Runs the walk.
@@ -271,6 +376,21 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     let walk_pub = node
         .create_publisher::<WalkCommand>(&walk_topic, None)
         .map_err(|e| anyhow::anyhow!("publisher /walk_command: {e:?}"))?;
+    let mut estops = if o.estop_at_s.is_empty() {
+        None
+    } else {
+        let start_ns = (o.settle_s * 1e9).round() as i64;
+        Some(EstopDriver {
+            at_ns: o
+                .estop_at_s
+                .iter()
+                .map(|t| start_ns + (t * 1e9).round() as i64)
+                .collect(),
+            estop: trigger_client(&mut node, "estop")?,
+            reset: trigger_client(&mut node, "reset")?,
+            state: EstopState::Idle,
+        })
+    };
     let spinner = node
         .spinner()
         .map_err(|e| anyhow::anyhow!("spinner: {e:?}"))?;
@@ -329,6 +449,23 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 .map_err(|e| anyhow::anyhow!("publish walk_command: {e:?}"))?;
             smol::Timer::after(Duration::from_millis(100)).await;
         }
+        if let Some(d) = &estops {
+            // Calls sent before the bridge's service is matched would be lost.
+            for client in [&d.estop, &d.reset] {
+                let matched = async {
+                    client.wait_for_service(&node).await;
+                    true
+                }
+                .or(async {
+                    smol::Timer::after(Duration::from_secs(60)).await;
+                    false
+                })
+                .await;
+                if !matched {
+                    anyhow::bail!("the joint_bridge's ~/estop and ~/reset services were not found within 60 s");
+                }
+            }
+        }
         fleet.spawn("sim_bridge")?;
         println!(
             "walking {} steps in simulation (lockstep{}); the walk starts at t = {:.2} s",
@@ -341,7 +478,11 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         let mut last_clock_wall = Instant::now();
         let mut last_progress_s = -1.0;
         let mut last_resend = Instant::now();
-        let end_by_s = o.settle_s + plan_duration_s + o.tail_s + 10.0;
+        let end_by_s = o.settle_s
+            + plan_duration_s
+            + o.tail_s
+            + 10.0
+            + o.estop_at_s.len() as f64 * (ESTOP_HOLD_S + 5.0);
         loop {
             let got = async { Some(clock.async_take().await) }
                 .or(async {
@@ -355,6 +496,9 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 first_clock_wall.get_or_insert(last_clock_wall);
             }
             rec.drain(&phase, &commands, &states, &base, &cop, &support, &fall);
+            if let Some(d) = &mut estops {
+                d.poll(&mut rec)?;
+            }
             if interrupted.load(std::sync::atomic::Ordering::SeqCst) {
                 anyhow::bail!(
                     "interrupted at t = {:.2} s of simulated time",

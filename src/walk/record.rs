@@ -41,6 +41,19 @@ pub struct Recording {
     pub fall: Option<(i64, String)>,
     /// Messages that could not be read, by topic.
     pub unreadable: BTreeMap<&'static str, u64>,
+    /// The e-stops asked (`--estop-at`), in order.
+    pub estops: Vec<EstopEvent>,
+}
+
+/// One e-stop of a walk: when it was asked, answered and reset, by the clock (ns).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct EstopEvent {
+    /// `~/estop` sent.
+    pub requested_ns: i64,
+    /// Its answer came (the bridge holds by then).
+    pub answered_ns: Option<i64>,
+    /// `~/reset` answered.
+    pub reset_ns: Option<i64>,
 }
 
 fn drain<M: serde::de::DeserializeOwned + 'static>(

@@ -10,6 +10,7 @@
 use std::collections::BTreeMap;
 
 use anyhow::Context;
+use biped_msgs::msg::JointState;
 use gait_planner::{GaitPlanner, GaitSample, PhaseKind};
 use ik_solver::support::signed_margin;
 use ik_solver::{BipedModel, LegOdometry, Side};
@@ -70,6 +71,128 @@ pub struct WalkSummary {
     pub real_time_factor: f64,
     /// Messages that could not be decoded, by topic.
     pub unreadable_messages: BTreeMap<String, u64>,
+    /// Stop anywhere, measured: one entry per `--estop-at` e-stop.
+    pub estops: Vec<EstopMeasure>,
+    /// Over the e-stops, the most a sole carrying the robot at the call lifted or slid
+    /// during the measured hold (m); `null` without e-stops.
+    pub stop_anywhere_worst_sole_m: Option<f64>,
+    /// Over the e-stops, the most the base moved from 0.5 s after the call to the end of
+    /// the measured hold (m): still or not; `null` without e-stops.
+    pub stop_anywhere_worst_base_late_m: Option<f64>,
+}
+
+/// The part of each e-stop's hold that is measured, from the call (s).
+pub const ESTOP_WINDOW_S: f64 = 2.0;
+
+/// What one e-stop did to the standing robot, from the call over [`ESTOP_WINDOW_S`]:
+/// ground truth (base pose) and forward kinematics of the measured joints.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EstopMeasure {
+    /// When `~/estop` was called, from the walk's start (s of simulated time less the
+    /// earlier holds, from call to reset: the walk's own time, which stands still while held).
+    pub t_s: f64,
+    /// Simulated time from the call to its answer (s): the stop lands within it.
+    pub answer_delay_s: f64,
+    /// The planner's phase at the call.
+    pub phase: PhaseKind,
+    /// Which soles carried the robot at the call, `[left, right]`: those whose centre lies
+    /// in the support polygon of the soles carrying more than 1 % of the weight.
+    pub loaded: [bool; 2],
+    /// Largest rise of a bottom corner of each sole (m).
+    pub lift_m: [f64; 2],
+    /// Largest horizontal drift of the centre of each sole's bottom face (m).
+    pub slide_m: [f64; 2],
+    /// How far the base moved in the first 0.5 s (m): the braking ...
+    pub base_early_m: f64,
+    /// ... and from 0.5 s to the end of the window (m): at rest or not.
+    pub base_late_m: f64,
+}
+
+/// The bottom corners of both soles, `[left, right]` (m).
+type SoleCorners = [[nalgebra::Point3<f64>; 4]; 2];
+
+/// The measures of each e-stop of the recording.
+fn estop_measures(
+    model: &BipedModel,
+    rec: &Recording,
+    start_ns: i64,
+) -> anyhow::Result<Vec<EstopMeasure>> {
+    let mut out = Vec::new();
+    let mut held_ns = 0i64;
+    for e in &rec.estops {
+        let window_ns = (ESTOP_WINDOW_S * 1e9).round() as i64;
+        let ticks: Vec<(i64, &JointState)> = rec
+            .states
+            .range(e.requested_ns..=e.requested_ns + window_ns)
+            .map(|(&t, js)| (t, js))
+            .collect();
+        let Some(&(t0, _)) = ticks.first() else {
+            continue;
+        };
+        // Both soles' bottom corners and the base position at the call.
+        let mut first: Option<(SoleCorners, nalgebra::Vector3<f64>)> = None;
+        let (mut lift_m, mut slide_m) = ([0.0f64; 2], [0.0f64; 2]);
+        let (mut base_early_m, mut base_late_m) = (0.0f64, 0.0f64);
+        let mut base_half: Option<nalgebra::Vector3<f64>> = None;
+        let mut loaded = [false; 2];
+        for (t, js) in &ticks {
+            let Some(base) = rec.base.get(t) else {
+                continue;
+            };
+            let q = joints_in_model_order(model, &js.name, &js.position)?;
+            let poses = model
+                .robot()
+                .link_poses(base, &q)
+                .context("forward kinematics of the measured joints")?;
+            let soles = Side::BOTH.map(|s| model.sole_corners_world(&poses, s));
+            let b = base.translation.vector;
+            let Some((soles0, b0)) = &first else {
+                let poly = rec.support.get(t).filter(|p| !p.is_empty());
+                loaded = Side::BOTH.map(|s| {
+                    let c = model.sole_centre_world(&poses, s);
+                    poly.is_some_and(|poly| signed_margin(poly, [c.x, c.y]) > 0.0)
+                });
+                first = Some((soles, b));
+                continue;
+            };
+            for k in 0..2 {
+                let (mut dx, mut dy) = (0.0, 0.0);
+                for c in 0..4 {
+                    lift_m[k] = lift_m[k].max(soles[k][c].z - soles0[k][c].z);
+                    dx += (soles[k][c].x - soles0[k][c].x) / 4.0;
+                    dy += (soles[k][c].y - soles0[k][c].y) / 4.0;
+                }
+                slide_m[k] = slide_m[k].max(f64::hypot(dx, dy));
+            }
+            if *t - t0 <= 500_000_000 {
+                base_early_m = base_early_m.max((b - b0).norm());
+            } else {
+                let h = *base_half.get_or_insert(b);
+                base_late_m = base_late_m.max((b - h).norm());
+            }
+        }
+        let phase = rec
+            .phases
+            .range(..=t0)
+            .next_back()
+            .map_or(PhaseKind::Idle, |(_, p)| p.kind);
+        out.push(EstopMeasure {
+            t_s: (e.requested_ns - start_ns - held_ns) as f64 * 1e-9,
+            answer_delay_s: e
+                .answered_ns
+                .map_or(f64::NAN, |a| (a - e.requested_ns) as f64 * 1e-9),
+            phase,
+            loaded,
+            lift_m,
+            slide_m,
+            base_early_m,
+            base_late_m,
+        });
+        if let Some(r) = e.reset_ns {
+            held_ns += r - e.requested_ns;
+        }
+    }
+    Ok(out)
 }
 
 /// The measured joint vector of a `joint_states` message, in the model's dof order.
@@ -228,6 +351,7 @@ pub fn summarize(
         None => (f64::NAN, f64::NAN),
     };
     let walk_duration_s = end_ns.map_or(t_end, |e| e as f64 * 1e-9) - start_ns as f64 * 1e-9;
+    let estops = estop_measures(model, rec, start_ns)?;
     let simulated_s = rec.clock_ns.min(stop_ns) as f64 * 1e-9;
     Ok(WalkSummary {
         robot: model.robot().name().to_owned(),
@@ -269,5 +393,15 @@ pub fn summarize(
             .iter()
             .map(|(k, v)| ((*k).to_owned(), *v))
             .collect(),
+        stop_anywhere_worst_sole_m: estops
+            .iter()
+            .flat_map(|e| {
+                (0..2)
+                    .filter(|&k| e.loaded[k])
+                    .map(|k| e.lift_m[k].max(e.slide_m[k]))
+            })
+            .reduce(f64::max),
+        stop_anywhere_worst_base_late_m: estops.iter().map(|e| e.base_late_m).reduce(f64::max),
+        estops,
     })
 }

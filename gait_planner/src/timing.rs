@@ -1,0 +1,265 @@
+//! The shortest phase durations a robot's walk allows, found by time scaling.
+//!
+//! Every phase follows a fixed path in joint space at a pace set by one profile over its
+//! duration T: slowing or speeding a phase scales every joint speed by 1/T and the CoM's
+//! acceleration, hence the ZMP's distance from the CoM (`crate::zmp`), by 1/T². One
+//! reference walk at known durations therefore gives, per phase kind, the shortest
+//! duration at which
+//! - no joint is faster than its URDF velocity limit: `T ≥ T_ref · max(v / v_limit)`;
+//! - the ZMP keeps `min_zmp_margin_m` from every edge of the support polygon: with the
+//!   CoM's floor point c and the ZMP's offset e at T_ref, the ZMP at T is `c + s·e` with
+//!   `s = (T_ref / T)²`, each edge's distance is linear in s, and `T ≥ T_ref / √s_max`.
+//!
+//! The durations found are rounded up to whole control periods and then verified by the
+//! planner's full check walks (every stride the robot is allowed: back, side, turn, at the
+//! step limits the reference walk settled: a faster timing never lowers them); a phase
+//! kind whose check still fails is lengthened by 5 % until all pass. The crouch, which
+//! starts from straight legs where the scaling is not exact, is then bisected against the
+//! checks. The search costs one reference walk per check stride and a handful of checked
+//! planners.
+
+use ik_solver::support::Xy;
+
+use crate::error::GaitError;
+use crate::params::GaitParams;
+use crate::phase::PhaseKind;
+use crate::planner::{GaitPlanner, GaitSample};
+use ik_solver::BipedModel;
+
+/// The three durations of a walk (s).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Timing {
+    /// Each CoM shift and the final centring.
+    pub shift_duration_s: f64,
+    /// Each swing.
+    pub step_duration_s: f64,
+    /// The crouch and the rise.
+    pub crouch_duration_s: f64,
+}
+
+/// What limits one duration.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Bound {
+    /// A joint's velocity limit.
+    JointSpeed,
+    /// The ZMP margin.
+    Zmp,
+    /// The smallest duration a parameter may have (0.1 s), or nothing at all.
+    Floor,
+    /// The full check walks: after the scaling estimate, or (the crouch) by bisection.
+    CheckWalk,
+}
+
+/// The fastest timing the checks allow, and what binds each duration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FastestTiming {
+    /// The durations.
+    pub timing: Timing,
+    /// What limits the shift, the step and the crouch, in that order.
+    pub bound: [Bound; 3],
+    /// Planners built to verify (each runs the full check walks).
+    pub checks: u32,
+    /// The parameters verified: the given ones with these durations and with the step
+    /// limits the reference walk settled (back, side, turn) set explicitly, so that a
+    /// faster timing is never bought by lowering an auto step limit.
+    pub params: GaitParams,
+}
+
+/// Smallest duration a parameter may have (s), as [`GaitParams::resolve`] bounds it.
+const MIN_DURATION_S: f64 = 0.1;
+/// Lengthening of a duration whose check walk still fails.
+const BACKOFF: f64 = 1.05;
+/// Verification rounds before giving up.
+const MAX_CHECKS: u32 = 40;
+/// Bisections of the crouch duration (to 1/32 of its estimate, or a control period).
+const CROUCH_BISECTIONS: u32 = 5;
+
+/// Which duration a phase kind takes: 0 shift, 1 step, 2 crouch.
+fn slot(kind: PhaseKind) -> Option<usize> {
+    match kind {
+        PhaseKind::Shift | PhaseKind::Center => Some(0),
+        PhaseKind::HalfStep | PhaseKind::Step | PhaseKind::FinalHalfStep => Some(1),
+        PhaseKind::Crouch | PhaseKind::Rise => Some(2),
+        PhaseKind::Idle => None,
+    }
+}
+
+/// The largest factor s ≥ 0 for which `c + s·e` keeps `min_m` from every edge of the
+/// convex, counter-clockwise polygon (infinite when no edge gets closer); 0 when `c`
+/// itself does not keep it.
+pub fn zmp_scale_limit(poly: &[Xy], c: Xy, e: Xy, min_m: f64) -> f64 {
+    let n = poly.len();
+    let mut s_max = f64::INFINITY;
+    for i in 0..n {
+        let (a, b) = (poly[i], poly[(i + 1) % n]);
+        let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
+        let len = ux.hypot(uy);
+        if len == 0.0 {
+            continue;
+        }
+        let dist = (ux * (c[1] - a[1]) - uy * (c[0] - a[0])) / len;
+        let slope = (ux * e[1] - uy * e[0]) / len;
+        if dist < min_m {
+            return 0.0;
+        }
+        if slope < 0.0 {
+            s_max = s_max.min((dist - min_m) / -slope);
+        }
+    }
+    s_max
+}
+
+/// The shortest durations of each phase kind that the joint speed limits and the ZMP
+/// margin allow, estimated from `samples` (a walk planned with `planner`'s durations).
+fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound); 3] {
+    let c = planner.config();
+    let t_ref = [c.shift_duration_s, c.step_duration_s, c.crouch_duration_s];
+    let dt = c.dt_s();
+    let robot = planner.model().robot();
+    let mut speed_ratio = [0.0f64; 3];
+    let mut zmp_scale = [f64::INFINITY; 3];
+    for (k, s) in samples.iter().enumerate() {
+        let Some(i) = slot(s.phase) else { continue };
+        if k > 0 && samples[k - 1].phase == s.phase {
+            for (d, (&a, &b)) in samples[k - 1]
+                .joints_rad
+                .iter()
+                .zip(&s.joints_rad)
+                .enumerate()
+            {
+                let j = &robot.joints()[robot.dof_joints()[d]];
+                if let Some(l) = j.limits.filter(|l| l.velocity > 0.0) {
+                    speed_ratio[i] = speed_ratio[i].max((b - a).abs() / dt / l.velocity);
+                }
+            }
+        }
+        let poly = planner.support_polygon(s.support, &s.ankles_world_m, &s.feet_yaw_rad);
+        let com = [s.com_world_m.x, s.com_world_m.y];
+        let e = [s.zmp_xy_m[0] - com[0], s.zmp_xy_m[1] - com[1]];
+        zmp_scale[i] = zmp_scale[i].min(zmp_scale_limit(&poly, com, e, c.min_zmp_margin_m));
+    }
+    std::array::from_fn(|i| {
+        let by_speed = t_ref[i] * speed_ratio[i];
+        let by_zmp = if zmp_scale[i] > 0.0 {
+            t_ref[i] / zmp_scale[i].sqrt()
+        } else {
+            f64::INFINITY
+        };
+        let (t, bound) = if by_speed >= by_zmp {
+            (by_speed, Bound::JointSpeed)
+        } else {
+            (by_zmp, Bound::Zmp)
+        };
+        if t <= MIN_DURATION_S {
+            (MIN_DURATION_S, Bound::Floor)
+        } else {
+            // Whole control periods, so the check's ticks fall as the scaling assumed.
+            ((t / dt).ceil() * dt, bound)
+        }
+    })
+}
+
+/// The fastest timing of the walk of `params` (its step length, lift, margins; its
+/// durations are the reference the scaling starts from and must themselves pass the
+/// checks) for `model`: see the module documentation.
+pub fn fastest_timing(model: &BipedModel, params: &GaitParams) -> Result<FastestTiming, GaitError> {
+    let reference = GaitPlanner::new(model.clone(), params.clone())?;
+    let settled = reference.config();
+    let fixed = GaitParams {
+        back_step_length_m: settled.back_step_length_m,
+        side_step_m: settled.side_step_m,
+        turn_step_rad: settled.turn_step_rad,
+        ..params.clone()
+    };
+    let strides = reference.check_strides();
+    let mut est = [(f64::INFINITY, Bound::Floor); 3];
+    for stride in strides {
+        let samples = reference.plan_stride(stride)?;
+        for (i, e) in scaled_minimum(&reference, &samples).into_iter().enumerate() {
+            if est[i].0 == f64::INFINITY || e.0 > est[i].0 {
+                est[i] = e;
+            }
+        }
+    }
+    let mut timing = est.map(|e| e.0);
+    let mut bound = est.map(|e| e.1);
+    let dt = reference.config().dt_s();
+    let mut checks = 0;
+    let verified = loop {
+        checks += 1;
+        let trial = GaitParams {
+            shift_duration_s: timing[0],
+            step_duration_s: timing[1],
+            crouch_duration_s: timing[2],
+            ..fixed.clone()
+        };
+        match GaitPlanner::new(model.clone(), trial.clone()) {
+            Ok(_) => break trial,
+            Err(e) if checks < MAX_CHECKS => {
+                let i = e.phase().and_then(slot).unwrap_or(0);
+                timing[i] = ((timing[i] * BACKOFF) / dt).ceil() * dt;
+                bound[i] = Bound::CheckWalk;
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    // The crouch starts from straight legs, where the knees move like √t: its CoM
+    // acceleration grows more slowly than 1/T² as T shrinks, so the scaling estimate is
+    // conservative. Bisect it against the checks instead, down to half the estimate.
+    let mut verified = verified;
+    if bound[2] != Bound::Floor {
+        let (mut lo, mut hi) = ((timing[2] / 2.0).max(MIN_DURATION_S), timing[2]);
+        for _ in 0..CROUCH_BISECTIONS {
+            let mid = ((lo + hi) / 2.0 / dt).round() * dt;
+            if mid <= lo || mid >= hi {
+                break;
+            }
+            checks += 1;
+            let trial = GaitParams {
+                crouch_duration_s: mid,
+                ..verified.clone()
+            };
+            match GaitPlanner::new(model.clone(), trial.clone()) {
+                Ok(_) => {
+                    hi = mid;
+                    verified = trial;
+                    bound[2] = Bound::CheckWalk;
+                }
+                Err(_) => lo = mid,
+            }
+        }
+        timing[2] = verified.crouch_duration_s;
+    }
+    Ok(FastestTiming {
+        timing: Timing {
+            shift_duration_s: timing[0],
+            step_duration_s: timing[1],
+            crouch_duration_s: timing[2],
+        },
+        bound,
+        checks,
+        params: verified,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SQUARE: [Xy; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+
+    #[test]
+    fn the_zmp_scale_limit_is_where_the_offset_meets_the_margin() {
+        // From the centre, 1 to the edge; margin 0.2 leaves 0.8; offset 0.4 along +x: s = 2.
+        assert!((zmp_scale_limit(&SQUARE, [0.0, 0.0], [0.4, 0.0], 0.2) - 2.0).abs() < 1e-12);
+        // Diagonal offset: the nearer edge in each axis binds, x here (0.5 of 0.9 left).
+        let s = zmp_scale_limit(&SQUARE, [0.1, 0.0], [0.5, 0.25], 0.0);
+        assert!((s - 0.9 / 0.5).abs() < 1e-12, "{s}");
+        // No offset: unlimited; the CoM short of the margin: 0.
+        assert_eq!(
+            zmp_scale_limit(&SQUARE, [0.0, 0.0], [0.0, 0.0], 0.1),
+            f64::INFINITY
+        );
+        assert_eq!(zmp_scale_limit(&SQUARE, [0.95, 0.0], [0.0, 0.0], 0.1), 0.0);
+    }
+}

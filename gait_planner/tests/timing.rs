@@ -1,0 +1,90 @@
+//! The fastest timing: accepted by the planner's own checks, and tight: a tenth shorter on
+//! any duration that a limit binds is refused, by that limit.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+use common::*;
+use gait_planner::timing::{Bound, fastest_timing};
+use gait_planner::{GaitError, GaitParams, GaitPlanner};
+
+fn shorter(params: &GaitParams, slot: usize, factor: f64) -> GaitParams {
+    let mut p = params.clone();
+    match slot {
+        0 => p.shift_duration_s *= factor,
+        1 => p.step_duration_s *= factor,
+        _ => p.crouch_duration_s *= factor,
+    }
+    p
+}
+
+fn check_tight(model: ik_solver::BipedModel) {
+    let f = fastest_timing(&model, &GaitParams::default()).unwrap();
+    eprintln!("{f:?}");
+    let t = f.timing;
+    let fastest = f.params.clone();
+    assert_eq!(
+        (
+            fastest.shift_duration_s,
+            fastest.step_duration_s,
+            fastest.crouch_duration_s
+        ),
+        (t.shift_duration_s, t.step_duration_s, t.crouch_duration_s)
+    );
+    // The step limits are those of the default walk, not lowered to buy speed.
+    let reference = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+    let walk = GaitPlanner::new(model.clone(), fastest.clone()).expect("the fastest timing passes");
+    let (a, b) = (reference.config(), walk.config());
+    assert_eq!(
+        (a.back_step_length_m, a.side_step_m, a.turn_step_rad),
+        (b.back_step_length_m, b.side_step_m, b.turn_step_rad)
+    );
+    // Faster than the defaults (2 s shifts, 1 s steps) by far.
+    assert!(t.shift_duration_s < 1.5 && t.step_duration_s < 1.0, "{t:?}");
+    for (slot, bound) in f.bound.iter().enumerate() {
+        if *bound == Bound::Floor {
+            continue;
+        }
+        let Err(err) = GaitPlanner::new(model.clone(), shorter(&fastest, slot, 0.9)) else {
+            panic!("slot {slot} ({bound:?}) a tenth faster is accepted: {f:?}");
+        };
+        let by = match &err {
+            GaitError::TooFast { .. } => "speed",
+            GaitError::ZmpOutside { .. } => "zmp",
+            GaitError::StepLimit { cause, .. } => match **cause {
+                GaitError::TooFast { .. } => "speed",
+                GaitError::ZmpOutside { .. } => "zmp",
+                _ => "other",
+            },
+            _ => "other",
+        };
+        match bound {
+            Bound::JointSpeed => assert_eq!(by, "speed", "slot {slot}: {err}"),
+            Bound::Zmp => assert_eq!(by, "zmp", "slot {slot}: {err}"),
+            _ => assert!(by != "other", "slot {slot}: {err}"),
+        }
+    }
+}
+
+#[test]
+fn the_default_robot_s_fastest_timing_passes_and_is_tight() {
+    check_tight(default_model());
+}
+
+#[test]
+fn the_six_joint_robot_s_fastest_timing_passes_and_is_tight() {
+    check_tight(biped6_model());
+}
+
+/// Durations that the robot cannot walk at all as a reference are refused as they are.
+#[test]
+fn a_reference_walk_that_fails_its_checks_is_refused() {
+    let err = fastest_timing(
+        &default_model(),
+        &GaitParams {
+            shift_duration_s: 0.3,
+            ..GaitParams::default()
+        },
+    )
+    .unwrap_err();
+    assert!(matches!(err, GaitError::ZmpOutside { .. }), "{err}");
+}
