@@ -560,7 +560,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 let f = gait_planner::timing::fastest_timing(&model, &params)?;
                 let t = f.timing;
                 println!(
-                    "fastest timing: shift {:.2} s ({:?}), step {:.2} s ({:?}), crouch {:.2} s ({:?}); found in {:.2} s ({} checked planners)",
+                    "fastest timing: shift {:.3} s ({:?}), step {:.3} s ({:?}), crouch {:.3} s ({:?}); found in {:.2} s ({} checked planners)",
                     t.shift_duration_s,
                     f.bound[0],
                     t.step_duration_s,
@@ -569,6 +569,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     f.bound[2],
                     started.elapsed().as_secs_f64(),
                     f.checks
+                );
+                eprintln!(
+                    "note: the fastest timing the planning checks allow (joint speed limits, ZMP margin); no torque budget: in MuJoCo both test robots walk at it, but an e-stop mid-shift topples them (BENCHMARKS.md, \"Walking faster\"). Not for hardware yet."
                 );
                 params = f.params;
             }

@@ -518,3 +518,52 @@ fn twist_turns_a_robot_with_hip_yaw() {
     assert!((yaw - 4.0 * 0.09).abs() < 1e-9, "base_yaw {yaw}");
     assert!(dir.join("top_view.svg").exists());
 }
+
+/// `--fastest` prints the durations it found and plans with them: the CSV's phases last
+/// that long (ticks at 100 Hz), a 20-step walk takes less than half the default's time,
+/// and the warning that no torque budget was checked goes to stderr.
+#[test]
+fn fastest_plans_with_the_timing_it_prints() {
+    let dir = tmp("fastest");
+    let csv_path = dir.join("plan.csv");
+    let out = biped(&[
+        "plan",
+        "--steps",
+        "4",
+        "--fastest",
+        "--csv",
+        csv_path.to_str().unwrap(),
+        "--no-plots",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("no torque budget"), "{stderr}");
+    // "fastest timing: shift 0.72 s (Zmp), step 0.58 s (...), crouch 0.31 s (...); ..."
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("fastest timing:"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    let secs = |key: &str| -> f64 {
+        let rest = line.split(&format!("{key} ")).nth(1).unwrap();
+        rest.split(" s").next().unwrap().parse().unwrap()
+    };
+    let (shift, step, crouch) = (secs("shift"), secs("step"), secs("crouch"));
+    assert!(shift < 2.0 && step < 1.0 && crouch < 1.0, "{line}");
+    let csv = Csv::read(&csv_path);
+    let phase = csv.col("phase");
+    let ticks = |name: &str| csv.rows.iter().filter(|r| r[phase] == name).count();
+    // Each phase's ticks are (start, end]; the crouch also has its t = 0 tick. 4 steps:
+    // 5 shifts and the centring (shift duration), 1 half step, 3 steps, 1 final half step.
+    let n = |s: f64| (s * 100.0).round() as usize;
+    assert_eq!(ticks("crouch"), n(crouch) + 1, "{line}");
+    assert_eq!(ticks("shift"), 5 * n(shift), "{line}");
+    assert_eq!(ticks("center"), n(shift), "{line}");
+    assert_eq!(ticks("step"), 3 * n(step), "{line}");
+    assert_eq!(ticks("half_step"), n(step), "{line}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
