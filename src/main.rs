@@ -570,8 +570,15 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     started.elapsed().as_secs_f64(),
                     f.checks
                 );
+                let torque = if params.servo_damping_nm_s_per_rad > 0.0
+                    || params.servo_armature_kg_m2 > 0.0
+                {
+                    "the servos' torque budget"
+                } else {
+                    "no torque budget (servo_damping_nm_s_per_rad and servo_armature_kg_m2 unset)"
+                };
                 eprintln!(
-                    "note: the fastest timing the planning checks allow (joint speed limits, ZMP margin); no torque budget: in MuJoCo both test robots walk at it, but an e-stop mid-shift topples them (BENCHMARKS.md, \"Walking faster\"). Not for hardware yet."
+                    "note: the fastest timing the planning checks allow (joint speed limits, ZMP margin, {torque}); in MuJoCo both test robots walk at it, but an e-stop mid-shift topples them (BENCHMARKS.md, \"Walking faster\"). Not for hardware yet."
                 );
                 params = f.params;
             }

@@ -521,7 +521,8 @@ fn twist_turns_a_robot_with_hip_yaw() {
 
 /// `--fastest` prints the durations it found and plans with them: the CSV's phases last
 /// that long (ticks at 100 Hz), a 20-step walk takes less than half the default's time,
-/// and the warning that no torque budget was checked goes to stderr.
+/// and the warning (no torque budget without a servo model; not for hardware) goes to
+/// stderr.
 #[test]
 fn fastest_plans_with_the_timing_it_prints() {
     let dir = tmp("fastest");
@@ -542,7 +543,10 @@ fn fastest_plans_with_the_timing_it_prints() {
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(stderr.contains("no torque budget"), "{stderr}");
+    assert!(
+        stderr.contains("no torque budget") && stderr.contains("Not for hardware"),
+        "{stderr}"
+    );
     // "fastest timing: shift 0.72 s (Zmp), step 0.58 s (...), crouch 0.31 s (...); ..."
     let line = stdout
         .lines()

@@ -72,6 +72,13 @@ pub struct GaitParams {
     /// point moved by its acceleration, [`crate::zmp`]) to the support polygon's edge (m).
     /// 0 = auto (the CoM margin's share of the sole).
     pub min_zmp_margin_m: f64,
+    /// The servos' damping (N·m·s/rad): torque a servo spends on its own speed, `b·q'`.
+    /// With `servo_armature_kg_m2`, the torque budget of the fastest timing
+    /// ([`crate::timing`]): static torque + `b·|q'|` + `J·|q''|` within each joint's URDF
+    /// effort limit. 0 = unknown (no budget for the speed).
+    pub servo_damping_nm_s_per_rad: f64,
+    /// The servos' rotor inertia through the gearbox, `J` (kg·m²). 0 = unknown.
+    pub servo_armature_kg_m2: f64,
     /// Which foot swings first.
     pub first_foot: Side,
     /// Rise back to straight legs at the end of a walk.
@@ -97,6 +104,8 @@ impl Default for GaitParams {
             control_rate_hz: 100.0,
             min_com_margin_m: 0.0,
             min_zmp_margin_m: 0.0,
+            servo_damping_nm_s_per_rad: 0.0,
+            servo_armature_kg_m2: 0.0,
             first_foot: Side::Left,
             rise_at_end: false,
             cmd_vel_timeout_s: 0.5,
@@ -302,6 +311,20 @@ impl GaitParams {
                 auto::MARGIN_PER_SOLE_WIDTH * sole_width,
                 0.0,
                 sole_width,
+            )?,
+            servo_damping_nm_s_per_rad: check(
+                "servo_damping_nm_s_per_rad",
+                self.servo_damping_nm_s_per_rad,
+                0.0,
+                100.0,
+                "N·m·s/rad",
+            )?,
+            servo_armature_kg_m2: check(
+                "servo_armature_kg_m2",
+                self.servo_armature_kg_m2,
+                0.0,
+                10.0,
+                "kg·m²",
             )?,
             first_foot: self.first_foot,
             rise_at_end: self.rise_at_end,

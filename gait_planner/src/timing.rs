@@ -10,6 +10,11 @@
 //!   CoM's floor point c and the ZMP's offset e at T_ref, the ZMP at T is `c + s·e` with
 //!   `s = (T_ref / T)²`, each edge's distance is linear in s, and `T ≥ T_ref / √s_max`.
 //!
+//! - with a servo model (`servo_damping_nm_s_per_rad` b, `servo_armature_kg_m2` J), each
+//!   joint's torque stays within its URDF effort: the static torque of the pose (the
+//!   statics of the sag compensation) plus `b·|q'|·σ + J·|q''|·σ²` with `σ = T_ref / T`.
+//!   Link inertia is left out (the rotor's, through the gearbox, dominates a hobby servo).
+//!
 //! The durations found are rounded up to whole control periods and then verified by the
 //! planner's full check walks (every stride the robot is allowed: back, side, turn, at the
 //! step limits the reference walk settled: a faster timing never lowers them); a phase
@@ -44,6 +49,9 @@ pub enum Bound {
     JointSpeed,
     /// The ZMP margin.
     Zmp,
+    /// A joint's torque budget: static torque, servo damping and rotor inertia within its
+    /// URDF effort limit (with `servo_damping_nm_s_per_rad`, `servo_armature_kg_m2`).
+    Torque,
     /// The smallest duration a parameter may have (0.1 s), or nothing at all.
     Floor,
     /// The full check walks: after the scaling estimate, or (the crouch) by bisection.
@@ -109,8 +117,50 @@ pub fn zmp_scale_limit(poly: &[Xy], c: Xy, e: Xy, min_m: f64) -> f64 {
     s_max
 }
 
-/// The shortest durations of each phase kind that the joint speed limits and the ZMP
-/// margin allow, estimated from `samples` (a walk planned with `planner`'s durations).
+/// The largest speed-up σ = T_ref / T at which a servo holding `static_nm` with speed
+/// `v_rad_s` and acceleration `a_rad_s2` (at T_ref) stays within `effort_nm`:
+/// `static + b·v·σ + J·a·σ² ≤ effort`. Infinite without dynamic terms; 0 when the static
+/// torque alone exceeds the effort.
+pub fn torque_speedup_limit(
+    static_nm: f64,
+    v_rad_s: f64,
+    a_rad_s2: f64,
+    damping_nm_s_per_rad: f64,
+    armature_kg_m2: f64,
+    effort_nm: f64,
+) -> f64 {
+    let spare = effort_nm - static_nm.abs();
+    if spare <= 0.0 {
+        return 0.0;
+    }
+    let (b, j) = (
+        damping_nm_s_per_rad * v_rad_s.abs(),
+        armature_kg_m2 * a_rad_s2.abs(),
+    );
+    if j > 0.0 {
+        (-b + (b * b + 4.0 * j * spare).sqrt()) / (2.0 * j)
+    } else if b > 0.0 {
+        spare / b
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Static joint torques of a planned tick (N·m), dof order.
+fn static_torques(planner: &GaitPlanner, s: &GaitSample) -> Option<Vec<f64>> {
+    let model = planner.model();
+    let poses = model
+        .robot()
+        .link_poses(&s.base_world, &s.joints_rad)
+        .ok()?;
+    let weight_n = model.robot().total_mass_kg() * crate::zmp::GRAVITY_M_S2;
+    let loads = model.static_foot_loads(&poses, s.com_world_m, s.support.stance(), weight_n);
+    Some(model.static_torques_nm(&poses, &loads))
+}
+
+/// The shortest durations of each phase kind that the joint speed limits, the ZMP margin
+/// and (with a servo model) the torque budget allow, estimated from `samples` (a walk
+/// planned with `planner`'s durations).
 fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound); 3] {
     let c = planner.config();
     let t_ref = [c.shift_duration_s, c.step_duration_s, c.crouch_duration_s];
@@ -118,8 +168,36 @@ fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound
     let robot = planner.model().robot();
     let mut speed_ratio = [0.0f64; 3];
     let mut zmp_scale = [f64::INFINITY; 3];
+    let mut torque_speedup = [f64::INFINITY; 3];
+    let servo_model = c.servo_damping_nm_s_per_rad > 0.0 || c.servo_armature_kg_m2 > 0.0;
     for (k, s) in samples.iter().enumerate() {
         let Some(i) = slot(s.phase) else { continue };
+        // Joint speed and acceleration by central differences within the phase.
+        if servo_model
+            && k > 0
+            && k + 1 < samples.len()
+            && samples[k - 1].phase == s.phase
+            && samples[k + 1].phase == s.phase
+            && let Some(tau) = static_torques(planner, s)
+        {
+            let (prev, next) = (&samples[k - 1].joints_rad, &samples[k + 1].joints_rad);
+            for (d, &t) in tau.iter().enumerate() {
+                let j = &robot.joints()[robot.dof_joints()[d]];
+                let Some(l) = j.limits.filter(|l| l.effort > 0.0) else {
+                    continue;
+                };
+                let v = (next[d] - prev[d]) / (2.0 * dt);
+                let a = (next[d] - 2.0 * s.joints_rad[d] + prev[d]) / (dt * dt);
+                torque_speedup[i] = torque_speedup[i].min(torque_speedup_limit(
+                    t,
+                    v,
+                    a,
+                    c.servo_damping_nm_s_per_rad,
+                    c.servo_armature_kg_m2,
+                    l.effort,
+                ));
+            }
+        }
         if k > 0 && samples[k - 1].phase == s.phase {
             for (d, (&a, &b)) in samples[k - 1]
                 .joints_rad
@@ -145,11 +223,21 @@ fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound
         } else {
             f64::INFINITY
         };
-        let (t, bound) = if by_speed >= by_zmp {
-            (by_speed, Bound::JointSpeed)
+        let by_torque = if torque_speedup[i] > 0.0 {
+            t_ref[i] / torque_speedup[i]
         } else {
-            (by_zmp, Bound::Zmp)
+            f64::INFINITY
         };
+        let (t, bound) = [
+            (by_speed, Bound::JointSpeed),
+            (by_zmp, Bound::Zmp),
+            (by_torque, Bound::Torque),
+        ]
+        .into_iter()
+        .fold(
+            (0.0, Bound::Floor),
+            |best, c| if c.0 > best.0 { c } else { best },
+        );
         if t <= MIN_DURATION_S {
             (MIN_DURATION_S, Bound::Floor)
         } else {
@@ -180,6 +268,12 @@ pub fn fastest_timing(model: &BipedModel, params: &GaitParams) -> Result<Fastest
                 est[i] = e;
             }
         }
+    }
+    if let Some(i) = est.iter().position(|e| !e.0.is_finite()) {
+        return Err(GaitError::Request(format!(
+            "no {} duration keeps the torque budget: a joint's static torque alone exceeds its URDF effort limit",
+            ["shift", "step", "crouch"][i]
+        )));
     }
     let mut timing = est.map(|e| e.0);
     let mut bound = est.map(|e| e.1);
@@ -247,6 +341,22 @@ mod tests {
     use super::*;
 
     const SQUARE: [Xy; 4] = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+
+    #[test]
+    fn the_torque_speedup_limit_solves_the_budget() {
+        // 0.5 N·m held, 1.5 N·m servo, damping 0.25 at 2 rad/s: 1 N·m spare, 0.5 N·m per
+        // unit of speed-up: twice as fast.
+        assert!((torque_speedup_limit(0.5, 2.0, 0.0, 0.25, 0.0, 1.5) - 2.0).abs() < 1e-12);
+        // With 0.005 kg·m² at 100 rad/s² (0.5 N·m, growing as σ²): σ = 1 exactly,
+        // 0.5 + 0.5 + 0.5 = 1.5.
+        assert!((torque_speedup_limit(-0.5, -2.0, 100.0, 0.25, 0.005, 1.5) - 1.0).abs() < 1e-12);
+        // No servo model: unlimited; the static torque above the effort: 0.
+        assert_eq!(
+            torque_speedup_limit(0.5, 2.0, 10.0, 0.0, 0.0, 1.5),
+            f64::INFINITY
+        );
+        assert_eq!(torque_speedup_limit(1.6, 0.0, 0.0, 0.25, 0.0, 1.5), 0.0);
+    }
 
     #[test]
     fn the_zmp_scale_limit_is_where_the_offset_meets_the_margin() {

@@ -88,3 +88,27 @@ fn a_reference_walk_that_fails_its_checks_is_refused() {
     .unwrap_err();
     assert!(matches!(err, GaitError::ZmpOutside { .. }), "{err}");
 }
+
+/// With the simulator's servo model (config/sim.yaml: damping 0.25 N·m·s/rad, rotor 0.005
+/// kg·m²) the 1.5 N·m servos of the default robot bound the timing before the joint speed
+/// limits do: slower than without a servo model, by the torque, and still accepted.
+#[test]
+fn a_servo_model_bounds_the_timing_by_torque() {
+    let model = default_model();
+    let free = fastest_timing(&model, &GaitParams::default()).unwrap();
+    let servo = GaitParams {
+        servo_damping_nm_s_per_rad: 0.25,
+        servo_armature_kg_m2: 0.005,
+        ..GaitParams::default()
+    };
+    let budget = fastest_timing(&model, &servo).unwrap();
+    eprintln!("{free:?}\n{budget:?}");
+    assert!(budget.bound.contains(&Bound::Torque), "{budget:?}");
+    let (a, b) = (free.timing, budget.timing);
+    assert!(b.step_duration_s >= a.step_duration_s, "{a:?} {b:?}");
+    assert!(
+        b.step_duration_s + b.shift_duration_s > a.step_duration_s + a.shift_duration_s,
+        "{a:?} {b:?}"
+    );
+    GaitPlanner::new(model, budget.params).expect("accepted");
+}
