@@ -54,7 +54,8 @@ pub struct GaitSample {
     /// positive inside.
     pub margin_m: f64,
     /// Planned acceleration of the CoM (m/s²): the phase's min-jerk profile, exact for the
-    /// CoM-driven phases (shifts, swings, centring); the pelvis's for the crouch and the rise.
+    /// CoM-driven phases (shifts, swings, centring); for the pelvis-driven crouch and rise,
+    /// the second difference of the planned CoM over one control period.
     pub com_accel_m_s2: Vector3<f64>,
     /// The cart-table ZMP of the planned CoM motion on the floor (m): see [`crate::zmp`].
     pub zmp_xy_m: Xy,
@@ -1184,14 +1185,7 @@ impl GaitPlanner {
                 });
             }
             if k > 0 {
-                for (d, (&a, &b)) in samples[k - 1]
-                    .joints_rad
-                    .iter()
-                    .zip(&s.joints_rad)
-                    .enumerate()
-                {
-                    let j = &robot.joints()[robot.dof_joints()[d]];
-                    let v = (b - a).abs() / dt;
+                for (j, v) in joint_speeds(robot, &samples[k - 1].joints_rad, &s.joints_rad, dt) {
                     if let Some(l) = j.limits.filter(|l| v > l.velocity) {
                         return Err(GaitError::TooFast {
                             phase: s.phase,
@@ -1237,6 +1231,20 @@ impl GaitPlanner {
         }
         Ok(out)
     }
+}
+
+/// Each joint's speed (rad/s, or m/s) between two consecutive ticks `dt` apart, with the
+/// joint: `from` and `to` in [`ik_solver::RobotModel::dof_names`] order.
+pub(crate) fn joint_speeds<'a>(
+    robot: &'a ik_solver::RobotModel,
+    from: &'a [f64],
+    to: &'a [f64],
+    dt: f64,
+) -> impl Iterator<Item = (&'a ik_solver::Joint, f64)> + 'a {
+    from.iter()
+        .zip(to)
+        .enumerate()
+        .map(move |(d, (&a, &b))| (&robot.joints()[robot.dof_joints()[d]], (b - a).abs() / dt))
 }
 
 /// The side-step check strides at a side step of `v`: alone and together with the longest

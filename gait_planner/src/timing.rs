@@ -28,7 +28,7 @@ use ik_solver::support::Xy;
 use crate::error::GaitError;
 use crate::params::GaitParams;
 use crate::phase::PhaseKind;
-use crate::planner::{GaitPlanner, GaitSample};
+use crate::planner::{GaitPlanner, GaitSample, joint_speeds};
 use ik_solver::BipedModel;
 
 /// The three durations of a walk (s).
@@ -199,15 +199,9 @@ fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound
             }
         }
         if k > 0 && samples[k - 1].phase == s.phase {
-            for (d, (&a, &b)) in samples[k - 1]
-                .joints_rad
-                .iter()
-                .zip(&s.joints_rad)
-                .enumerate()
-            {
-                let j = &robot.joints()[robot.dof_joints()[d]];
+            for (j, v) in joint_speeds(robot, &samples[k - 1].joints_rad, &s.joints_rad, dt) {
                 if let Some(l) = j.limits.filter(|l| l.velocity > 0.0) {
-                    speed_ratio[i] = speed_ratio[i].max((b - a).abs() / dt / l.velocity);
+                    speed_ratio[i] = speed_ratio[i].max(v / l.velocity);
                 }
             }
         }
@@ -270,8 +264,12 @@ pub fn fastest_timing(model: &BipedModel, params: &GaitParams) -> Result<Fastest
         }
     }
     if let Some(i) = est.iter().position(|e| !e.0.is_finite()) {
+        let why = match est[i].1 {
+            Bound::Torque => "a joint's static torque alone exceeds its URDF effort limit",
+            _ => "the CoM itself comes closer than min_zmp_margin_m to the support polygon's edge",
+        };
         return Err(GaitError::Request(format!(
-            "no {} duration keeps the torque budget: a joint's static torque alone exceeds its URDF effort limit",
+            "no {} duration passes the time scaling: {why}",
             ["shift", "step", "crouch"][i]
         )));
     }

@@ -108,6 +108,18 @@ pub struct EstopMeasure {
     pub base_late_m: f64,
 }
 
+const MEASURED_FK: &str = "forward kinematics of the measured joints";
+
+/// The link poses of a recorded tick: base pose and measured joints.
+fn measured_poses(
+    model: &BipedModel,
+    base: &Isometry3<f64>,
+    js: &JointState,
+) -> anyhow::Result<Vec<Isometry3<f64>>> {
+    let q = joints_in_model_order(model, &js.name, &js.position)?;
+    model.robot().link_poses(base, &q).context(MEASURED_FK)
+}
+
 /// The bottom corners of both soles, `[left, right]` (m).
 type SoleCorners = [[nalgebra::Point3<f64>; 4]; 2];
 
@@ -139,11 +151,7 @@ fn estop_measures(
             let Some(base) = rec.base.get(t) else {
                 continue;
             };
-            let q = joints_in_model_order(model, &js.name, &js.position)?;
-            let poses = model
-                .robot()
-                .link_poses(base, &q)
-                .context("forward kinematics of the measured joints")?;
+            let poses = measured_poses(model, base, js)?;
             let soles = Side::BOTH.map(|s| model.sole_corners_world(&poses, s));
             let b = base.translation.vector;
             let Some((soles0, b0)) = &first else {
@@ -262,10 +270,7 @@ pub fn summarize(
             continue;
         };
         let q = joints_in_model_order(model, &js.name, &js.position)?;
-        let poses = model
-            .robot()
-            .link_poses(base, &q)
-            .context("forward kinematics of the measured joints")?;
+        let poses = model.robot().link_poses(base, &q).context(MEASURED_FK)?;
         let poly = rec.support.get(&t).filter(|p| !p.is_empty());
         let inside = |p: [f64; 2]| poly.is_some_and(|poly| signed_margin(poly, p) > 0.0);
         let feet = Side::BOTH.map(|s| {
