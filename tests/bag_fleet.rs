@@ -19,7 +19,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{bin_dir, in_netns, python, root};
+use common::{bin_dir, json_of, python, python_in_netns, root};
 use serde_json::{Value, json};
 
 fn scratch(name: &str) -> PathBuf {
@@ -31,18 +31,13 @@ fn scratch(name: &str) -> PathBuf {
 
 /// Runs a bag_peer.py scenario in a new network namespace; returns its JSON.
 fn peer(scenario: &str, path: &Path, domain_id: u32) -> Value {
-    let out = in_netns("exec \"$@\"", domain_id)
-        .arg(python())
-        .arg(root().join("tests/python/bag_peer.py"))
-        .arg(scenario)
-        .arg(bin_dir())
-        .arg(path)
-        .output()
-        .expect("unshare runs (root needed for a private network namespace)");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "bag_peer {scenario} failed: {stderr}");
-    serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("bag_peer output is not JSON ({e}): {stderr}"))
+    json_of(
+        python_in_netns("bag_peer.py", domain_id)
+            .arg(scenario)
+            .arg(bin_dir())
+            .arg(path),
+        &format!("bag_peer {scenario}"),
+    )
 }
 
 /// bag_check.py --strict on a bag: its JSON summary (the test fails on any failure).

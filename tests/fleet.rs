@@ -7,32 +7,24 @@
 
 mod common;
 
-use common::{bin_dir, in_netns, python, root};
+use common::{bin_dir, json_of, python_in_netns};
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::{BipedModel, Side};
 use serde_json::Value;
 
 /// Runs a peer scenario in a new network namespace and returns what it recorded.
 fn peer(scenario: &str, domain_id: u32) -> Value {
-    let script = root().join("tests/python/fleet_peer.py");
-    let out = in_netns("exec \"$@\"", domain_id)
-        .arg(python())
-        .arg(&script)
-        .arg(scenario)
-        .arg(bin_dir())
-        .env(
-            "BIPED_TEST_LOG_DIR",
-            std::env::temp_dir().join(format!("biped-launch-{domain_id}-{}", std::process::id())),
-        )
-        .output()
-        .expect("unshare runs (root needed for a private network namespace)");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "peer scenario {scenario} failed: {stderr}"
-    );
-    serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("peer output is not JSON ({e}): {stderr}"))
+    json_of(
+        python_in_netns("fleet_peer.py", domain_id)
+            .arg(scenario)
+            .arg(bin_dir())
+            .env(
+                "BIPED_TEST_LOG_DIR",
+                std::env::temp_dir()
+                    .join(format!("biped-launch-{domain_id}-{}", std::process::id())),
+            ),
+        &format!("peer scenario {scenario}"),
+    )
 }
 
 fn xy(p: &Value) -> [f64; 2] {

@@ -883,7 +883,7 @@ impl GaitPlanner {
                 (ph.base_z_to - ph.base_z_from) * r_dd,
             ),
             Drive::Base { from, to }
-                if from == to && ph.base_z_from == ph.base_z_to || !ph.duration_s.is_finite() =>
+                if (from == to && ph.base_z_from == ph.base_z_to) || !ph.duration_s.is_finite() =>
             {
                 Vector3::zeros()
             }

@@ -254,11 +254,12 @@ pub fn fastest_timing(model: &BipedModel, params: &GaitParams) -> Result<Fastest
         ..params.clone()
     };
     let strides = reference.check_strides();
-    let mut est = [(f64::INFINITY, Bound::Floor); 3];
+    // The longest duration any check stride needs (an infinite one stays).
+    let mut est = [(0.0, Bound::Floor); 3];
     for stride in strides {
         let samples = reference.plan_stride(stride)?;
         for (i, e) in scaled_minimum(&reference, &samples).into_iter().enumerate() {
-            if est[i].0 == f64::INFINITY || e.0 > est[i].0 {
+            if e.0 > est[i].0 {
                 est[i] = e;
             }
         }
@@ -277,7 +278,7 @@ pub fn fastest_timing(model: &BipedModel, params: &GaitParams) -> Result<Fastest
     let mut bound = est.map(|e| e.1);
     let dt = reference.config().dt_s();
     let mut checks = 0;
-    let verified = loop {
+    let mut verified = loop {
         checks += 1;
         let trial = GaitParams {
             shift_duration_s: timing[0],
@@ -298,7 +299,6 @@ pub fn fastest_timing(model: &BipedModel, params: &GaitParams) -> Result<Fastest
     // The crouch starts from straight legs, where the knees move like √t: its CoM
     // acceleration grows more slowly than 1/T² as T shrinks, so the scaling estimate is
     // conservative. Bisect it against the checks instead, down to half the estimate.
-    let mut verified = verified;
     if bound[2] != Bound::Floor {
         let (mut lo, mut hi) = ((timing[2] / 2.0).max(MIN_DURATION_S), timing[2]);
         for _ in 0..CROUCH_BISECTIONS {

@@ -12,7 +12,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use serde_json::Value;
 
-use super::{in_netns, python, root};
+use super::{json_of, python_in_netns};
 
 /// Threads that keep the CPUs busy until dropped: a cold start on a loaded machine.
 pub struct Load {
@@ -63,16 +63,10 @@ pub fn env_count(name: &str, default: usize) -> usize {
 /// One cold start of the node binaries in `bin_dir`, in a new network namespace: what the
 /// peer recorded.
 pub fn cold_start(bin_dir: &Path, domain_id: u32) -> Value {
-    let out = in_netns("exec \"$@\"", domain_id)
-        .arg(python())
-        .arg(root().join("tests/python/cold_start_peer.py"))
-        .arg(bin_dir)
-        .output()
-        .expect("unshare runs (root needed for a private network namespace)");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "cold start peer failed: {stderr}");
-    serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("cold start peer output is not JSON ({e}): {stderr}"))
+    json_of(
+        python_in_netns("cold_start_peer.py", domain_id).arg(bin_dir),
+        "cold start peer",
+    )
 }
 
 /// Seconds from the start until the peer had seen every node and fleet endpoint; `None` if

@@ -134,3 +134,24 @@ pub fn biped_walk_ok(domain_id: u32, out: &std::path::Path, args: &[&str]) {
         String::from_utf8_lossy(&o.stderr)
     );
 }
+
+/// `tests/python/SCRIPT` under the reference Python in a new network namespace
+/// ([`in_netns`]); add its arguments with `.arg`, then [`json_of`].
+pub fn python_in_netns(script: &str, domain_id: u32) -> Command {
+    let mut c = in_netns("exec \"$@\"", domain_id);
+    c.arg(python())
+        .arg(root().join("tests/python").join(script));
+    c
+}
+
+/// Runs `cmd`, which must succeed (else panics naming `what` with its stderr), and parses
+/// the JSON it prints.
+pub fn json_of(cmd: &mut Command, what: &str) -> serde_json::Value {
+    let out = cmd
+        .output()
+        .expect("unshare runs (root needed for a private network namespace)");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{what} failed: {stderr}");
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("{what}: output is not JSON ({e}): {stderr}"))
+}
