@@ -238,19 +238,19 @@ fn top_view(planner: &GaitPlanner, samples: &[GaitSample]) -> anyhow::Result<Str
     let cfg = planner.config();
     let stride = planner.stride();
     let title = format!(
-        "Top view: {} of {:.0} mm forward, {:.0} mm left, {:.1}° turn, minimum margins: CoM {:.1} mm (required {:.1}), ZMP {:.1} mm (required {:.1})",
+        "Top view: {} of {:.0} mm forward, {:.0} mm left, {:.1}° turn; least margins CoM {:.1} mm, ZMP {:.1} mm",
         steps_text(step_count(samples)),
         stride.forward_m * 1e3,
         stride.left_m * 1e3,
         stride.turn_rad.to_degrees(),
         min_margin_m(samples) * 1e3,
-        cfg.min_com_margin_m * 1e3,
         min_zmp_margin_m(samples) * 1e3,
-        cfg.min_zmp_margin_m * 1e3
     );
     let subtitle = format!(
-        "{}: footprints where a foot stood (numbered by the swing that put it there), CoM, ZMP (cart-table model) and pelvis paths; equal scales",
-        planner.model().robot().name()
+        "{}: footprints where a foot stood (numbered by the swing that put it there), CoM, ZMP (cart-table model) and pelvis paths; margins required {:.1} mm, {:.1} mm; equal scales",
+        planner.model().robot().name(),
+        cfg.min_com_margin_m * 1e3,
+        cfg.min_zmp_margin_m * 1e3
     );
     render((WIDTH_PX, height_px), |root| {
         let (head, body) = root.split_vertically(TITLE_H_PX);
