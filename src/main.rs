@@ -128,9 +128,20 @@ enum Command {
         /// Stop anywhere, measured: at these instants (simulated seconds from the walk's
         /// start, comma-separated) call the joint bridge's `~/estop` (std_srvs/Trigger, as
         /// an operator would); after 2.5 s call `~/reset` and the walk goes on. report.json's
-        /// `estops` gives, per stop, how far each loaded sole and the base moved while held.
+        /// `stops` gives, per stop, how far each loaded sole and the base moved while held.
         #[arg(long, value_name = "S,...", value_delimiter = ',')]
         estop_at: Vec<f64>,
+        /// Stop anywhere along the plan, measured: at these instants call the gait planner's
+        /// `~/pause` (std_srvs/SetBool true: the walk comes to rest along its path within
+        /// `pause_brake_time_s`); after 2.5 s `~/pause` false and the walk goes on.
+        /// report.json's `stops` measures each as for --estop-at. Not with --estop-at.
+        #[arg(
+            long,
+            value_name = "S,...",
+            value_delimiter = ',',
+            conflicts_with = "estop_at"
+        )]
+        pause_at: Vec<f64>,
     },
     /// Record topics into a rosbag2 bag (Jazzy format, MCAP or sqlite3) until Ctrl-C,
     /// SIGTERM or --duration.
@@ -430,17 +441,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             settle,
             bag,
             estop_at,
+            pause_at,
         } => {
             if !(settle.is_finite() && (0.0..=60.0).contains(&settle)) {
                 anyhow::bail!("--settle {settle}: must be within [0, 60] s");
             }
-            let mut estop_at_s = estop_at;
-            if let Some(bad) = estop_at_s.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
-                anyhow::bail!(
-                    "--estop-at {bad}: each instant must be a finite number of seconds >= 0"
-                );
-            }
-            estop_at_s.sort_by(f64::total_cmp);
+            let instants = |flag: &str, mut at: Vec<f64>| -> anyhow::Result<Vec<f64>> {
+                if let Some(bad) = at.iter().find(|t| !(t.is_finite() && **t >= 0.0)) {
+                    anyhow::bail!(
+                        "{flag} {bad}: each instant must be a finite number of seconds >= 0"
+                    );
+                }
+                at.sort_by(f64::total_cmp);
+                Ok(at)
+            };
+            let estop_at_s = instants("--estop-at", estop_at)?;
+            let pause_at_s = instants("--pause-at", pause_at)?;
             let outcome = walk::walk(&walk::WalkOptions {
                 steps,
                 velocity: twist,
@@ -455,6 +471,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 stall_s: 30.0,
                 bag,
                 estop_at_s,
+                pause_at_s,
             })?;
             let r = &outcome.report;
             let m = &r.measured;
@@ -472,14 +489,20 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 m.cop_inside_fraction * 100.0,
                 r.real_time_factor
             );
-            if let (Some(sole), Some(base)) = (
+            if let (Some(sole), Some(sole_late), Some(base)) = (
                 r.stop_anywhere_worst_sole_m,
+                r.stop_anywhere_worst_sole_late_m,
                 r.stop_anywhere_worst_base_late_m,
             ) {
                 println!(
-                    "{} e-stops: a loaded sole moved at most {:.2} mm, the base {:.2} mm from 0.5 s to {} s after the call",
-                    r.estops.len(),
+                    "{} {}: a loaded sole moved at most {:.2} mm from the call ({:.2} mm from 0.5 s on), the base {:.2} mm from 0.5 s to {} s after the call",
+                    r.stops.len(),
+                    match r.stops.first().map(|s| s.kind) {
+                        Some(walk::report::StopKind::Pause) => "pauses",
+                        _ => "e-stops",
+                    },
                     sole * 1e3,
+                    sole_late * 1e3,
                     base * 1e3,
                     walk::report::ESTOP_WINDOW_S
                 );
@@ -570,6 +593,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     started.elapsed().as_secs_f64(),
                     f.checks
                 );
+                // What pausing anywhere costs: the same search without the brake bound.
+                let free =
+                    gait_planner::timing::fastest_timing_with_brake(&model, &params, None)?.timing;
+                let period =
+                    |t: &gait_planner::timing::Timing| t.shift_duration_s + t.step_duration_s;
+                println!(
+                    "pausing anywhere within {:.2} s costs {:.0} % of the speed: without it, shift {:.3} s, step {:.3} s",
+                    if params.pause_brake_time_s > 0.0 {
+                        params.pause_brake_time_s
+                    } else {
+                        gait_planner::timing::PAUSE_BRAKE_BUDGET_S
+                    },
+                    (1.0 - period(&free) / period(&t)) * 100.0,
+                    free.shift_duration_s,
+                    free.step_duration_s
+                );
                 let torque = if params.servo_damping_nm_s_per_rad > 0.0
                     || params.servo_armature_kg_m2 > 0.0
                 {
@@ -578,7 +617,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     "no torque budget (servo_damping_nm_s_per_rad and servo_armature_kg_m2 unset)"
                 };
                 eprintln!(
-                    "note: the fastest timing the planning checks allow (joint speed limits, ZMP margin, {torque}); in MuJoCo both test robots walk at it, but an e-stop mid-shift topples them (BENCHMARKS.md, \"Walking faster\"). Not for hardware yet."
+                    "note: the fastest timing the planning checks allow (joint speed limits, ZMP margin, pausing within the brake time, {torque}); the joint bridge's e-stop, which freezes the joints at once, can still topple a robot walking this fast (BENCHMARKS.md, \"Walking faster\"). Not for hardware yet."
                 );
                 params = f.params;
             }
@@ -600,7 +639,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let c = planner.config();
             let stride = planner.stride();
             println!(
-                "planned {steps} steps of {:.3} m forward, {:.3} m left for {}: {} ticks at {} Hz, {:.2} s, base moved {:.3} m forward, {:.3} m left, minimum CoM margin {:.4} m (required {:.4} m), minimum ZMP margin {:.4} m (required {:.4} m)",
+                "planned {steps} steps of {:.3} m forward, {:.3} m left for {}: {} ticks at {} Hz, {:.2} s, base moved {:.3} m forward, {:.3} m left, minimum CoM margin {:.4} m (required {:.4} m), minimum ZMP margin {:.4} m (required {:.4} m); a pause (~/pause) comes to rest within {:.2} s",
                 stride.forward_m,
                 stride.left_m,
                 planner.model().robot().name(),
@@ -612,7 +651,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 summary.min_margin_m,
                 c.min_com_margin_m,
                 summary.min_zmp_margin_m,
-                c.min_zmp_margin_m
+                c.min_zmp_margin_m,
+                c.pause_brake_time_s
             );
             for f in &summary.files {
                 println!("wrote {}", f.display());

@@ -406,25 +406,39 @@ fn random_instants(seed: u64, n: usize, from: f64, to: f64) -> String {
         .join(",")
 }
 
-/// Stop anywhere, through the fleet: an operator's e-stop (the joint bridge's `~/estop`,
-/// called over DDS by `biped walk --estop-at`) at 20 seeded random instants of a walk; each
-/// holds 2.5 s, then `~/reset` and the walk goes on where it paused. Every e-stop is
-/// answered within 0.3 s of simulated time and measured; the robot never falls and is at
-/// rest (base within 5 mm) from 0.5 s after each call; the walk still covers its planned
-/// distance. How far the loaded soles move is printed and in BENCHMARKS.md ("Stop
-/// anywhere through the fleet"), not asserted: at 3 mm worst it is above the 2 mm the
-/// issue asks for (#16: the servos' lag is released when the bridge holds).
+/// How a walk is stopped anywhere.
+#[derive(Clone, Copy)]
+enum Stop {
+    /// The joint bridge's `~/estop` (`--estop-at`): the joints brake at their limits.
+    Estop,
+    /// The gait planner's `~/pause` (`--pause-at`): the walk's clock slows to a stop.
+    Pause,
+}
+
+/// Stop anywhere, through the fleet: an operator's stop (`biped walk --estop-at` or
+/// `--pause-at`, the service called over DDS) at 20 seeded random instants of a walk; each
+/// holds 2.5 s, then is released and the walk goes on where it stopped. Every stop is
+/// answered within 0.3 s of simulated time and measured; the robot never falls, and from
+/// 0.5 s after each call every sole that carried weight at the call (> 1 % of it) moves
+/// less than 2 mm (#16); with `base_at_rest`, the base less than 5 mm; the walk still
+/// covers its planned distance. How far the loaded soles move from the call itself (the
+/// stop's own motion) is printed and in BENCHMARKS.md ("Stop anywhere through the fleet"),
+/// not asserted: 3-4 mm worst, where a foot has just landed.
 fn stops_anywhere_through_the_fleet(
     name: &str,
     domain: u32,
     args: &[&str],
-    seed: u64,
-    walk_s: f64,
+    (stop, seed, walk_s): (Stop, u64, f64),
+    base_at_rest: bool,
 ) {
     let out = out_dir(name);
     let instants = random_instants(seed, 20, 0.2, walk_s - 0.2);
     let mut all: Vec<&str> = args.to_vec();
-    all.extend(["--estop-at", &instants]);
+    let (flag, kind) = match stop {
+        Stop::Estop => ("--estop-at", "estop"),
+        Stop::Pause => ("--pause-at", "pause"),
+    };
+    all.extend([flag, &instants]);
     let run = walk(domain, &out, &all);
     assert!(
         run.status.success(),
@@ -432,15 +446,16 @@ fn stops_anywhere_through_the_fleet(
         String::from_utf8_lossy(&run.stderr)
     );
     let r = report(&out);
-    let estops = r["estops"].as_array().unwrap();
-    for e in estops {
+    let stops = r["stops"].as_array().unwrap();
+    for e in stops {
         eprintln!("{e}");
     }
     assert!(r["fell"].is_null());
-    assert_eq!(estops.len(), 20, "{instants}");
+    assert_eq!(stops.len(), 20, "{instants}");
     let asked: Vec<f64> = instants.split(',').map(|t| t.parse().unwrap()).collect();
     let mut loaded_soles = 0;
-    for (e, t_asked) in estops.iter().zip(&asked) {
+    for (e, t_asked) in stops.iter().zip(&asked) {
+        assert_eq!(e["kind"], kind);
         let t = num(e, "t_s");
         // Called at the first tick at or after its instant of walk time.
         assert!(
@@ -448,13 +463,24 @@ fn stops_anywhere_through_the_fleet(
             "asked {t_asked}, called {t}"
         );
         assert!(num(e, "answer_delay_s") < 0.3, "t {t}: answered late: {e}");
-        loaded_soles += (0..2)
-            .filter(|&k| e["loaded"][k].as_bool().unwrap())
-            .count();
-        assert!(num(e, "base_late_m") < 0.005, "t {t}: base moved: {e}");
+        for k in 0..2 {
+            if e["loaded"][k].as_bool().unwrap() {
+                loaded_soles += 1;
+                let late = e["sole_late_m"][k].as_f64().unwrap();
+                assert!(
+                    late < 0.002,
+                    "t {t}: a loaded sole moved {late} m at rest: {e}"
+                );
+            }
+        }
+        if base_at_rest {
+            assert!(num(e, "base_late_m") < 0.005, "t {t}: base moved: {e}");
+        }
     }
     assert!(loaded_soles >= 20, "{loaded_soles} loaded soles measured");
     let worst = num(&r, "stop_anywhere_worst_sole_m");
+    let late = num(&r, "stop_anywhere_worst_sole_late_m");
+    eprintln!("worst loaded sole {worst} m from the call, {late} m from 0.5 s on");
     assert!(worst > 0.0 && worst < 0.02, "worst loaded sole {worst} m");
     let (d, planned) = (num(&r, "distance_m"), num(&r, "planned_distance_m"));
     assert!(
@@ -471,7 +497,45 @@ fn the_default_robot_stops_anywhere_through_the_fleet() {
         "stop-anywhere",
         96,
         &["--steps", "10"],
-        0x5EED_2026_1127_0001,
-        36.0,
+        (Stop::Estop, 0x5EED_2026_1127_0001, 36.0),
+        true,
     );
+}
+
+/// The same 20 instants with the planner's `~/pause`: the walk comes to rest along its
+/// path within `pause_brake_time_s` (0.08 s here).
+#[test]
+fn the_default_robot_pauses_anywhere_through_the_fleet() {
+    stops_anywhere_through_the_fleet(
+        "pause-anywhere",
+        98,
+        &["--steps", "10"],
+        (Stop::Pause, 0x5EED_2026_1127_0001, 36.0),
+        true,
+    );
+}
+
+/// The fastest timing that can pause within 0.25 s (`biped plan --fastest`: 0.78 s shifts,
+/// 0.58 s steps, 0.31 s crouch), where the joint bridge's e-stop topples the robot
+/// (BENCHMARKS.md): paused at 20 instants of 20 steps it stands, every loaded sole at rest.
+/// Its base, swaying on one foot when paused mid-swing, moves up to 7.5 mm from 0.5 s on:
+/// printed, not asserted (#16 asks 5 mm).
+#[test]
+fn the_fastest_walk_pauses_anywhere_without_falling() {
+    let out = out_dir("pause-fastest-params");
+    std::fs::create_dir_all(&out).unwrap();
+    let params = out.join("fastest.yaml");
+    std::fs::write(
+        &params,
+        "gait_planner:\n  ros__parameters:\n    shift_duration_s: 0.78\n    step_duration_s: 0.58\n    crouch_duration_s: 0.31\n",
+    )
+    .unwrap();
+    stops_anywhere_through_the_fleet(
+        "pause-fastest",
+        99,
+        &["--steps", "20", "--params", params.to_str().unwrap()],
+        (Stop::Pause, 0x5EED_2026_1127_0002, 29.6),
+        false,
+    );
+    let _ = std::fs::remove_dir_all(&out);
 }

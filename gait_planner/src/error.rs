@@ -114,6 +114,24 @@ pub enum GaitError {
         /// Why the check walk failed (in the message too).
         cause: Box<GaitError>,
     },
+    /// Pausing at some tick with the brake time given would move the ZMP closer to the
+    /// support polygon's edge than the minimum ([`crate::pause`]).
+    #[error(
+        "gait parameter `pause_brake_time_s` = {brake_s} s refused: {} at t = {t_s:.3} s in phase `{phase}` moves the ZMP closer than `min_zmp_margin_m`; it needs at least {needed_s:.3} s (0 = auto)",
+        if *.resuming { "speeding up again" } else { "a pause braking" }
+    )]
+    PauseBrake {
+        /// The brake time given (s).
+        brake_s: f64,
+        /// The shortest that keeps the margin (s; infinite for none).
+        needed_s: f64,
+        /// The phase of the tick that needs it.
+        phase: PhaseKind,
+        /// When, from the start of the check walk.
+        t_s: f64,
+        /// Speeding up (resume) rather than braking.
+        resuming: bool,
+    },
     /// A walk request with a bad value.
     #[error("walk request refused: {0}")]
     Request(String),
@@ -127,7 +145,8 @@ impl GaitError {
             | Self::ZmpOutside { phase, .. }
             | Self::Unreachable { phase, .. }
             | Self::TooFast { phase, .. }
-            | Self::SolesOverlap { phase, .. } => Some(*phase),
+            | Self::SolesOverlap { phase, .. }
+            | Self::PauseBrake { phase, .. } => Some(*phase),
             Self::StepLimit { cause, .. } => cause.phase(),
             Self::Param { .. } | Self::ParamFile { .. } | Self::Time { .. } | Self::Request(_) => {
                 None

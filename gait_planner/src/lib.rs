@@ -17,6 +17,7 @@
 
 mod error;
 pub mod params;
+pub mod pause;
 mod phase;
 mod planner;
 pub mod schedule;

@@ -72,6 +72,12 @@ pub struct GaitParams {
     /// point moved by its acceleration, [`crate::zmp`]) to the support polygon's edge (m).
     /// 0 = auto (the CoM margin's share of the sole).
     pub min_zmp_margin_m: f64,
+    /// How long a pause (the node's `~/pause`) takes to bring the walk to rest along its
+    /// path, and a resume to bring it back to speed (s): the plan's clock slows and speeds
+    /// up as a minimum-jerk ramp ([`crate::pause`]). 0 = auto: the shortest that keeps the
+    /// ZMP within `min_zmp_margin_m` pausing at any tick of the check walks, in whole control
+    /// periods. A value set by hand is checked the same way.
+    pub pause_brake_time_s: f64,
     /// The servos' damping (N·m·s/rad): torque a servo spends on its own speed, `b·q'`.
     /// With `servo_armature_kg_m2`, the torque budget of the fastest timing
     /// ([`crate::timing`]): static torque + `b·|q'|` + `J·|q''|` within each joint's URDF
@@ -104,6 +110,7 @@ impl Default for GaitParams {
             control_rate_hz: 100.0,
             min_com_margin_m: 0.0,
             min_zmp_margin_m: 0.0,
+            pause_brake_time_s: 0.0,
             servo_damping_nm_s_per_rad: 0.0,
             servo_armature_kg_m2: 0.0,
             first_foot: Side::Left,
@@ -311,6 +318,13 @@ impl GaitParams {
                 auto::MARGIN_PER_SOLE_WIDTH * sole_width,
                 0.0,
                 sole_width,
+            )?,
+            pause_brake_time_s: check(
+                "pause_brake_time_s",
+                self.pause_brake_time_s,
+                0.0,
+                10.0,
+                "s (0 = auto)",
             )?,
             servo_damping_nm_s_per_rad: check(
                 "servo_damping_nm_s_per_rad",

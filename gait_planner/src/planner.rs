@@ -12,6 +12,7 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 
 use crate::error::GaitError;
 use crate::params::{GaitConfig, GaitParams};
+use crate::pause::{BrakeBound, PlannedCom, shortest_brake_s};
 use crate::phase::{PhaseKind, Support, WalkRequest};
 use crate::stride::{Stride, StrideCommand, Velocity};
 use crate::trajectory::{min_jerk, min_jerk_accel, swing_advance, swing_height};
@@ -179,6 +180,10 @@ pub struct GaitPlanner {
     com_xy: Xy,
     last_t_s: f64,
     poses: Vec<Isometry3<f64>>,
+    /// The pause brake bound of each check walk that passed (its stride, the bound, and
+    /// the phase and time of the tick that needs it): [`Self::settle_brake`] reads the
+    /// settled strides' here instead of planning them again.
+    brakes: std::cell::RefCell<Vec<(Stride, BrakeBound, PhaseKind, f64)>>,
 }
 
 /// Results of placing the pelvis for given feet.
@@ -210,6 +215,7 @@ impl GaitPlanner {
 
     /// The check walks of [`Self::new`], settling the auto step limits.
     fn check_limits(&mut self, params: &GaitParams) -> Result<(), GaitError> {
+        self.brakes.borrow_mut().clear();
         self.check_walk(Stride::forward(self.cfg.step_length_m))?;
         let back = self.settle_limit(
             "back_step_length_m",
@@ -236,7 +242,76 @@ impl GaitPlanner {
             self.cfg.turn_step_rad = turn;
         }
         self.stride = Stride::forward(self.cfg.step_length_m);
+        self.cfg.pause_brake_time_s = self.settle_brake(params.pause_brake_time_s)?;
         Ok(())
+    }
+
+    /// The CoM motion of consecutive `samples` as the pause check takes it: the velocity by
+    /// central differences (one-sided at the ends), the support polygon of each tick.
+    pub(crate) fn planned_coms(&self, samples: &[GaitSample]) -> Vec<PlannedCom> {
+        let dt = self.cfg.dt_s();
+        let n = samples.len();
+        (0..n)
+            .map(|k| {
+                let (a, b) = (k.saturating_sub(1), (k + 1).min(n - 1));
+                let span = (b - a) as f64 * dt;
+                let s = &samples[k];
+                PlannedCom {
+                    com_m: s.com_world_m,
+                    velocity_m_s: if span > 0.0 {
+                        (samples[b].com_world_m - samples[a].com_world_m) / span
+                    } else {
+                        Vector3::zeros()
+                    },
+                    accel_m_s2: s.com_accel_m_s2,
+                    polygon: self.support_polygon(s.support, &s.ankles_world_m, &s.feet_yaw_rad),
+                }
+            })
+            .collect()
+    }
+
+    /// The pause brake time: the shortest that keeps the ZMP margin pausing or resuming at
+    /// any tick of the check walks ([`crate::pause::shortest_brake_s`]), in whole control
+    /// periods, for 0 (auto); a value set by hand, if it is at least that.
+    fn settle_brake(&self, given_s: f64) -> Result<f64, GaitError> {
+        let mut worst: Option<(BrakeBound, PhaseKind, f64)> = None;
+        for stride in self.check_strides() {
+            let cached = self
+                .brakes
+                .borrow()
+                .iter()
+                .rev()
+                .find(|b| b.0 == stride)
+                .copied();
+            let (_, b, phase, t_s) = match cached {
+                Some(found) => found,
+                None => self.brake_bound(stride, &self.plan_stride(stride)?),
+            };
+            if worst.as_ref().is_none_or(|w| b.brake_s > w.0.brake_s) {
+                worst = Some((b, phase, t_s));
+            }
+        }
+        let Some((bound, phase, t_s)) = worst else {
+            return Ok(given_s);
+        };
+        let refuse = |brake_s: f64| GaitError::PauseBrake {
+            brake_s,
+            needed_s: bound.brake_s,
+            phase,
+            t_s,
+            resuming: bound.resuming,
+        };
+        if !bound.brake_s.is_finite() {
+            return Err(refuse(given_s));
+        }
+        if given_s == 0.0 {
+            let rate = self.cfg.control_rate_hz;
+            Ok((bound.brake_s * rate - 1e-9).ceil().max(0.0) / rate)
+        } else if given_s < bound.brake_s {
+            Err(refuse(given_s))
+        } else {
+            Ok(given_s)
+        }
     }
 
     /// The strides of the check walks of [`Self::new`], at the settled step limits.
@@ -451,6 +526,7 @@ impl GaitPlanner {
             com_xy: [0.0, 0.0],
             last_t_s: f64::NEG_INFINITY,
             poses: Vec::new(),
+            brakes: Default::default(),
         }
     }
 
@@ -1131,7 +1207,23 @@ impl GaitPlanner {
     /// ankle position or a joint limit, or move a joint faster than its limit.
     fn check_walk(&self, stride: Stride) -> Result<(), GaitError> {
         let samples = self.plan_stride(stride)?;
-        self.check_samples(&samples)
+        self.check_samples(&samples)?;
+        let found = self.brake_bound(stride, &samples);
+        self.brakes.borrow_mut().push(found);
+        Ok(())
+    }
+
+    /// The shortest pause brake of a check walk's `samples` (see [`Self::settle_brake`]).
+    fn brake_bound(
+        &self,
+        stride: Stride,
+        samples: &[GaitSample],
+    ) -> (Stride, BrakeBound, PhaseKind, f64) {
+        let b = shortest_brake_s(&self.planned_coms(samples), self.cfg.min_zmp_margin_m);
+        let (phase, t_s) = samples
+            .get(b.tick)
+            .map_or((PhaseKind::Idle, 0.0), |s| (s.phase, s.t_s));
+        (stride, b, phase, t_s)
     }
 
     /// The check walk of one stride, not checked: three steps from the initial pose.

@@ -52,6 +52,9 @@ pub enum Bound {
     /// A joint's torque budget: static torque, servo damping and rotor inertia within its
     /// URDF effort limit (with `servo_damping_nm_s_per_rad`, `servo_armature_kg_m2`).
     Torque,
+    /// Pausing anywhere ([`crate::pause`]) within the brake time allowed keeps the ZMP
+    /// margin: the CoM is slow enough to stop that quickly.
+    Pause,
     /// The smallest duration a parameter may have (0.1 s), or nothing at all.
     Floor,
     /// The full check walks: after the scaling estimate, or (the crouch) by bisection.
@@ -117,6 +120,43 @@ pub fn zmp_scale_limit(poly: &[Xy], c: Xy, e: Xy, min_m: f64) -> f64 {
     s_max
 }
 
+/// The largest factor σ ≥ 0 for which `c + σ²·a + σ·b` keeps `min_m` from every edge of
+/// the convex, counter-clockwise polygon for every factor up to σ (infinite when no edge
+/// gets closer); 0 when `c` itself does not keep it. With `b = 0` this is
+/// [`zmp_scale_limit`] in σ = √s.
+pub fn quadratic_scale_limit(poly: &[Xy], c: Xy, a: Xy, b: Xy, min_m: f64) -> f64 {
+    let n = poly.len();
+    let mut s_max = f64::INFINITY;
+    for i in 0..n {
+        let (p, q) = (poly[i], poly[(i + 1) % n]);
+        let (ux, uy) = (q[0] - p[0], q[1] - p[1]);
+        let len = ux.hypot(uy);
+        if len == 0.0 {
+            continue;
+        }
+        let along = |v: Xy| (ux * v[1] - uy * v[0]) / len;
+        let spare = (ux * (c[1] - p[1]) - uy * (c[0] - p[0])) / len - min_m;
+        if spare < 0.0 {
+            return 0.0;
+        }
+        // The edge is kept while g(σ) = qa σ² + qb σ - spare ≤ 0 (qa, qb: how fast the
+        // point approaches the edge); g(0) ≤ 0, so the first positive root, if any.
+        let (qa, qb) = (-along(a), -along(b));
+        let root = if qa == 0.0 {
+            if qb > 0.0 { spare / qb } else { f64::INFINITY }
+        } else {
+            let disc = qb * qb + 4.0 * qa * spare;
+            if disc < 0.0 || (qa < 0.0 && qb <= 0.0) {
+                f64::INFINITY
+            } else {
+                (-qb + disc.sqrt()) / (2.0 * qa)
+            }
+        };
+        s_max = s_max.min(root);
+    }
+    s_max
+}
+
 /// The largest speed-up σ = T_ref / T at which a servo holding `static_nm` with speed
 /// `v_rad_s` and acceleration `a_rad_s2` (at T_ref) stays within `effort_nm`:
 /// `static + b·v·σ + J·a·σ² ≤ effort`. Infinite without dynamic terms; 0 when the static
@@ -161,7 +201,11 @@ fn static_torques(planner: &GaitPlanner, s: &GaitSample) -> Option<Vec<f64>> {
 /// The shortest durations of each phase kind that the joint speed limits, the ZMP margin
 /// and (with a servo model) the torque budget allow, estimated from `samples` (a walk
 /// planned with `planner`'s durations).
-fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound); 3] {
+fn scaled_minimum(
+    planner: &GaitPlanner,
+    samples: &[GaitSample],
+    max_brake_s: Option<f64>,
+) -> [(f64, Bound); 3] {
     let c = planner.config();
     let t_ref = [c.shift_duration_s, c.step_duration_s, c.crouch_duration_s];
     let dt = c.dt_s();
@@ -169,6 +213,8 @@ fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound
     let mut speed_ratio = [0.0f64; 3];
     let mut zmp_scale = [f64::INFINITY; 3];
     let mut torque_speedup = [f64::INFINITY; 3];
+    let mut pause_speedup = [f64::INFINITY; 3];
+    let coms = max_brake_s.map(|_| planner.planned_coms(samples));
     let servo_model = c.servo_damping_nm_s_per_rad > 0.0 || c.servo_armature_kg_m2 > 0.0;
     for (k, s) in samples.iter().enumerate() {
         let Some(i) = slot(s.phase) else { continue };
@@ -209,6 +255,26 @@ fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound
         let com = [s.com_world_m.x, s.com_world_m.y];
         let e = [s.zmp_xy_m[0] - com[0], s.zmp_xy_m[1] - com[1]];
         zmp_scale[i] = zmp_scale[i].min(zmp_scale_limit(&poly, com, e, c.min_zmp_margin_m));
+        // A pause braking within `max_brake_s` at time scale σ: the ZMP is
+        // c - z/g·(c''·σ²·r² + c'·σ·r'), r' = ∓min_jerk_rate(u)/T_b (crate::pause).
+        if let (Some(brake_s), Some(coms)) = (max_brake_s, &coms) {
+            let p = &coms[k];
+            let kz = p.com_m.z / crate::zmp::GRAVITY_M_S2;
+            for (r, r_rate) in crate::pause::ramp_points() {
+                let a = [-kz * p.accel_m_s2.x * r * r, -kz * p.accel_m_s2.y * r * r];
+                let b = [
+                    -kz * p.velocity_m_s.x * r_rate / brake_s,
+                    -kz * p.velocity_m_s.y * r_rate / brake_s,
+                ];
+                pause_speedup[i] = pause_speedup[i].min(quadratic_scale_limit(
+                    &p.polygon,
+                    com,
+                    a,
+                    b,
+                    c.min_zmp_margin_m,
+                ));
+            }
+        }
     }
     std::array::from_fn(|i| {
         let by_speed = t_ref[i] * speed_ratio[i];
@@ -222,10 +288,16 @@ fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound
         } else {
             f64::INFINITY
         };
+        let by_pause = if pause_speedup[i] > 0.0 {
+            t_ref[i] / pause_speedup[i]
+        } else {
+            f64::INFINITY
+        };
         let (t, bound) = [
             (by_speed, Bound::JointSpeed),
             (by_zmp, Bound::Zmp),
             (by_torque, Bound::Torque),
+            (by_pause, Bound::Pause),
         ]
         .into_iter()
         .fold(
@@ -241,16 +313,40 @@ fn scaled_minimum(planner: &GaitPlanner, samples: &[GaitSample]) -> [(f64, Bound
     })
 }
 
+/// The longest a pause may take to bring the walk to rest in the fastest timing, when
+/// `pause_brake_time_s` is auto (s): half of the 0.5 s after which a stopped robot must be
+/// at rest (#16), the other half for the servos to settle.
+pub const PAUSE_BRAKE_BUDGET_S: f64 = 0.25;
+
 /// The fastest timing of the walk of `params` (its step length, lift, margins; its
 /// durations are the reference the scaling starts from and must themselves pass the
-/// checks) for `model`: see the module documentation.
+/// checks) for `model` that can still pause anywhere within `pause_brake_time_s`
+/// ([`PAUSE_BRAKE_BUDGET_S`] when auto): see the module documentation.
 pub fn fastest_timing(model: &BipedModel, params: &GaitParams) -> Result<FastestTiming, GaitError> {
+    let brake_s = if params.pause_brake_time_s > 0.0 {
+        params.pause_brake_time_s
+    } else {
+        PAUSE_BRAKE_BUDGET_S
+    };
+    fastest_timing_with_brake(model, params, Some(brake_s))
+}
+
+/// [`fastest_timing`] with pauses braking within `max_brake_s`, or (`None`) as fast as the
+/// other bounds allow, however long a pause then takes: the speed that stopping anywhere
+/// costs.
+pub fn fastest_timing_with_brake(
+    model: &BipedModel,
+    params: &GaitParams,
+    max_brake_s: Option<f64>,
+) -> Result<FastestTiming, GaitError> {
     let reference = GaitPlanner::new(model.clone(), params.clone())?;
     let settled = reference.config();
     let fixed = GaitParams {
         back_step_length_m: settled.back_step_length_m,
         side_step_m: settled.side_step_m,
         turn_step_rad: settled.turn_step_rad,
+        // Verified with the brake time allowed set by hand: refused if a pause needs more.
+        pause_brake_time_s: max_brake_s.unwrap_or(0.0),
         ..params.clone()
     };
     let strides = reference.check_strides();
@@ -258,7 +354,10 @@ pub fn fastest_timing(model: &BipedModel, params: &GaitParams) -> Result<Fastest
     let mut est = [(0.0, Bound::Floor); 3];
     for stride in strides {
         let samples = reference.plan_stride(stride)?;
-        for (i, e) in scaled_minimum(&reference, &samples).into_iter().enumerate() {
+        for (i, e) in scaled_minimum(&reference, &samples, max_brake_s)
+            .into_iter()
+            .enumerate()
+        {
             if e.0 > est[i].0 {
                 est[i] = e;
             }
@@ -322,6 +421,8 @@ pub fn fastest_timing(model: &BipedModel, params: &GaitParams) -> Result<Fastest
         }
         timing[2] = verified.crouch_duration_s;
     }
+    // The brake time as given (auto: the shortest, within the budget just verified).
+    verified.pause_brake_time_s = params.pause_brake_time_s;
     Ok(FastestTiming {
         timing: Timing {
             shift_duration_s: timing[0],
@@ -354,6 +455,39 @@ mod tests {
             f64::INFINITY
         );
         assert_eq!(torque_speedup_limit(1.6, 0.0, 0.0, 0.25, 0.0, 1.5), 0.0);
+    }
+
+    #[test]
+    fn the_quadratic_scale_limit_is_the_first_root_per_edge() {
+        // From the centre, 0.8 of room to the x = 1 edge (margin 0.2): c + σ²·(0.1, 0) +
+        // σ·(0.3, 0) meets it at 0.1σ² + 0.3σ = 0.8: σ = (-0.3 + √(0.09 + 0.32)) / 0.2.
+        let s = quadratic_scale_limit(&SQUARE, [0.0, 0.0], [0.1, 0.0], [0.3, 0.0], 0.2);
+        let want = (-0.3 + (0.09f64 + 0.32).sqrt()) / 0.2;
+        assert!((s - want).abs() < 1e-12, "{s} vs {want}");
+        // Without the linear term it is √ of the ZMP scale limit.
+        let s = quadratic_scale_limit(&SQUARE, [0.1, 0.0], [0.5, 0.25], [0.0, 0.0], 0.0);
+        assert!((s - (0.9f64 / 0.5).sqrt()).abs() < 1e-12, "{s}");
+        // Pulled back first, then pushed out: -0.4σ + 0.1σ² = 0.8 at σ = 2 + √12, not
+        // before (the square term wins only then).
+        let s = quadratic_scale_limit(&SQUARE, [0.0, 0.0], [0.1, 0.0], [-0.4, 0.0], 0.2);
+        assert!((s - (2.0 + 12f64.sqrt())).abs() < 1e-12, "{s}");
+        // Pushed towards x = 1, then pulled back before reaching it (0.5σ - 0.1σ² peaks
+        // at 0.625 < 0.8): the far edge binds, reached at 0.1σ² - 0.5σ = 0.8.
+        let s = quadratic_scale_limit(&SQUARE, [0.0, 0.0], [-0.1, 0.0], [0.5, 0.0], 0.2);
+        assert!((s - (0.5 + 0.57f64.sqrt()) / 0.2).abs() < 1e-12, "{s}");
+        // Along an edge: never.
+        let s = quadratic_scale_limit(&SQUARE, [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], 0.2);
+        assert!(s.is_infinite(), "{s}");
+        let s = quadratic_scale_limit(&SQUARE, [0.0, 0.0], [-0.1, 0.0], [1.0, 0.0], 0.2);
+        assert!(
+            (s - (1.0 - (1.0f64 - 0.32).sqrt()) / 0.2).abs() < 1e-12,
+            "{s}"
+        );
+        // The point already short of the margin: 0.
+        assert_eq!(
+            quadratic_scale_limit(&SQUARE, [0.95, 0.0], [0.0, 0.0], [0.0, 0.0], 0.1),
+            0.0
+        );
     }
 
     #[test]

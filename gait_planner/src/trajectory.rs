@@ -59,3 +59,23 @@ pub fn min_jerk_accel(p: f64) -> f64 {
     }
     p * (60.0 + p * (-180.0 + 120.0 * p))
 }
+
+/// Integral of [`min_jerk`] from 0 to `p`: `p⁴(5/2 - 3p + p²)` on [0, 1] (1/2 at p = 1),
+/// then growing by 1 per unit of `p` (the ramp stays at 1); 0 for `p <= 0`. A rate that
+/// ramps from 0 to 1 over T covers `T·min_jerk_integral(t/T)`: half the ramp's time.
+///
+/// ```
+/// use gait_planner::trajectory::min_jerk_integral;
+/// assert_eq!(min_jerk_integral(0.0), 0.0);
+/// assert_eq!(min_jerk_integral(1.0), 0.5);
+/// assert_eq!(min_jerk_integral(3.0), 2.5);
+/// ```
+pub fn min_jerk_integral(p: f64) -> f64 {
+    if p <= 0.0 {
+        0.0
+    } else if p >= 1.0 {
+        0.5 + (p - 1.0)
+    } else {
+        p * p * p * p * (2.5 + p * (-3.0 + p))
+    }
+}

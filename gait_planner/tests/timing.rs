@@ -1,10 +1,13 @@
-//! The fastest timing: accepted by the planner's own checks, and tight: a tenth shorter on
-//! any duration that a limit binds is refused, by that limit.
+//! The fastest timing: accepted by the planner's own checks, pausing anywhere within the
+//! brake budget, and tight: a tenth shorter on any duration that a limit binds is refused,
+//! by that limit.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
 use common::*;
-use gait_planner::timing::{Bound, fastest_timing};
+use gait_planner::timing::{
+    Bound, PAUSE_BRAKE_BUDGET_S, fastest_timing, fastest_timing_with_brake,
+};
 use gait_planner::{GaitError, GaitParams, GaitPlanner};
 
 fn shorter(params: &GaitParams, slot: usize, factor: f64) -> GaitParams {
@@ -40,16 +43,39 @@ fn check_tight(model: ik_solver::BipedModel) {
     );
     // Faster than the defaults (2 s shifts, 1 s steps) by far.
     assert!(t.shift_duration_s < 1.5 && t.step_duration_s < 1.0, "{t:?}");
+    // Its pauses come to rest within the budget (the auto brake, in whole ticks).
+    let brake_s = walk.config().pause_brake_time_s;
+    assert!(
+        brake_s > 0.0 && brake_s <= PAUSE_BRAKE_BUDGET_S + 1e-9,
+        "brake {brake_s} s"
+    );
+    // Without the budget it is as fast or faster, never slower.
+    let free = fastest_timing_with_brake(&model, &GaitParams::default(), None)
+        .unwrap()
+        .timing;
+    assert!(
+        free.shift_duration_s <= t.shift_duration_s && free.step_duration_s <= t.step_duration_s,
+        "{free:?} vs {t:?}"
+    );
+    // Tightness, with the budget held (the auto brake would lengthen instead).
+    let budgeted = GaitParams {
+        pause_brake_time_s: PAUSE_BRAKE_BUDGET_S,
+        ..fastest.clone()
+    };
     for (slot, bound) in f.bound.iter().enumerate() {
         if *bound == Bound::Floor {
             continue;
         }
-        let Err(err) = GaitPlanner::new(model.clone(), shorter(&fastest, slot, 0.9)) else {
+        // A pause bound lies just above the plain ZMP bound (braking adds to the planned
+        // acceleration): a tenth shorter would fail the ZMP check first; a twentieth.
+        let factor = if *bound == Bound::Pause { 0.95 } else { 0.9 };
+        let Err(err) = GaitPlanner::new(model.clone(), shorter(&budgeted, slot, factor)) else {
             panic!("slot {slot} ({bound:?}) a tenth faster is accepted: {f:?}");
         };
         let by = match &err {
             GaitError::TooFast { .. } => "speed",
             GaitError::ZmpOutside { .. } => "zmp",
+            GaitError::PauseBrake { .. } => "pause",
             GaitError::StepLimit { cause, .. } => match **cause {
                 GaitError::TooFast { .. } => "speed",
                 GaitError::ZmpOutside { .. } => "zmp",
@@ -60,6 +86,7 @@ fn check_tight(model: ik_solver::BipedModel) {
         match bound {
             Bound::JointSpeed => assert_eq!(by, "speed", "slot {slot}: {err}"),
             Bound::Zmp => assert_eq!(by, "zmp", "slot {slot}: {err}"),
+            Bound::Pause => assert_eq!(by, "pause", "slot {slot}: {err}"),
             _ => assert!(by != "other", "slot {slot}: {err}"),
         }
     }

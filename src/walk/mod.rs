@@ -30,6 +30,7 @@ use smol::future::FutureExt as _;
 
 use crate::launch::{Fleet, LaunchOptions};
 use record::Recording;
+use report::StopKind;
 
 /// What `biped walk` does.
 #[derive(Debug, Clone)]
@@ -63,9 +64,32 @@ pub struct WalkOptions {
     /// Instants (s from the walk's start, sorted) at which to call the joint bridge's
     /// `~/estop`, each released by `~/reset` [`ESTOP_HOLD_S`] later.
     pub estop_at_s: Vec<f64>,
+    /// Instants (s from the walk's start, sorted) at which to call the gait planner's
+    /// `~/pause` true, each released by `~/pause` false [`ESTOP_HOLD_S`] later. Not with
+    /// `estop_at_s`.
+    pub pause_at_s: Vec<f64>,
 }
 
-/// How long each `--estop-at` stop holds before `~/reset` (s of simulated time); the
+impl WalkOptions {
+    /// Which stop the walk is stopped with.
+    pub fn stop_kind(&self) -> StopKind {
+        if self.pause_at_s.is_empty() {
+            StopKind::Estop
+        } else {
+            StopKind::Pause
+        }
+    }
+
+    /// The instants of the stops.
+    pub fn stop_at_s(&self) -> &[f64] {
+        match self.stop_kind() {
+            StopKind::Estop => &self.estop_at_s,
+            StopKind::Pause => &self.pause_at_s,
+        }
+    }
+}
+
+/// How long each `--estop-at` or `--pause-at` stop holds before its release (s of simulated time); the
 /// report measures the first [`report::ESTOP_WINDOW_S`] of it.
 pub const ESTOP_HOLD_S: f64 = 2.5;
 
@@ -131,95 +155,178 @@ fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
 
 type TriggerClient =
     ros2_client::Client<biped_msgs::srv::TriggerRequest, biped_msgs::srv::TriggerResponse>;
+type SetBoolClient =
+    ros2_client::Client<biped_msgs::srv::SetBoolRequest, biped_msgs::srv::TriggerResponse>;
 
-/// A client of the joint bridge's `~/<name>` std_srvs/Trigger service.
-fn trigger_client(node: &mut ros2_client::Node, name: &str) -> anyhow::Result<TriggerClient> {
-    use biped_msgs::srv::{RosService, Trigger};
+/// A client of service `S` at `/<node>/<name>`.
+fn service_client<S: biped_msgs::srv::RosService>(
+    node: &mut ros2_client::Node,
+    of: &str,
+    name: &str,
+) -> anyhow::Result<ros2_client::Client<S::Request, S::Response>> {
     let qos = node_runtime::qos::service();
-    let service = ros2_client::Name::new("/joint_bridge", name)
-        .map_err(|e| anyhow::anyhow!("service name /joint_bridge/{name}: {e:?}"))?;
+    let service = ros2_client::Name::new(&format!("/{of}"), name)
+        .map_err(|e| anyhow::anyhow!("service name /{of}/{name}: {e:?}"))?;
     node.create_client(
         ros2_client::ServiceMapping::Enhanced,
         &service,
-        &Trigger::service_type_name(),
+        &S::service_type_name(),
         qos.clone(),
         qos,
     )
-    .map_err(|e| anyhow::anyhow!("client of /joint_bridge/{name}: {e:?}"))
+    .map_err(|e| anyhow::anyhow!("client of /{of}/{name}: {e:?}"))
 }
 
-/// Where the e-stops of `--estop-at` are.
-enum EstopState {
+/// The services a stop is asked and released with.
+enum StopClients {
+    /// The joint bridge's `~/estop`, released by `~/reset`.
+    Estop {
+        estop: TriggerClient,
+        reset: Box<TriggerClient>,
+    },
+    /// The gait planner's `~/pause`: true, released by false.
+    Pause(SetBoolClient),
+}
+
+impl StopClients {
+    fn new(node: &mut ros2_client::Node, kind: StopKind) -> anyhow::Result<Self> {
+        use biped_msgs::srv::{SetBool, Trigger};
+        Ok(match kind {
+            StopKind::Estop => Self::Estop {
+                estop: service_client::<Trigger>(node, "joint_bridge", "estop")?,
+                reset: Box::new(service_client::<Trigger>(node, "joint_bridge", "reset")?),
+            },
+            StopKind::Pause => {
+                Self::Pause(service_client::<SetBool>(node, "gait_planner", "pause")?)
+            }
+        })
+    }
+
+    /// The service names, for messages.
+    fn names(&self) -> &'static str {
+        match self {
+            Self::Estop { .. } => "/joint_bridge/estop and /joint_bridge/reset",
+            Self::Pause(_) => "/gait_planner/pause",
+        }
+    }
+
+    /// Waits until every service is matched (calls sent before would be lost); false after
+    /// 60 s.
+    async fn wait(&self, node: &ros2_client::Node) -> bool {
+        match self {
+            Self::Estop { estop, reset } => {
+                within_a_minute(estop.wait_for_service(node)).await
+                    && within_a_minute(reset.wait_for_service(node)).await
+            }
+            Self::Pause(c) => within_a_minute(c.wait_for_service(node)).await,
+        }
+    }
+
+    /// Asks the stop (`release` false) or its release.
+    fn call(&self, release: bool) -> anyhow::Result<ros2_client::RmwRequestId> {
+        let failed = |e| anyhow::anyhow!("call {}: {e:?}", self.names());
+        match (self, release) {
+            (Self::Estop { estop, .. }, false) => {
+                estop.send_request(Default::default()).map_err(failed)
+            }
+            (Self::Estop { reset, .. }, true) => {
+                reset.send_request(Default::default()).map_err(failed)
+            }
+            (Self::Pause(c), _) => c
+                .send_request(biped_msgs::srv::SetBoolRequest { data: !release })
+                .map_err(failed),
+        }
+    }
+
+    /// True once the answer to `id` (the stop or its release) came.
+    fn answered(&self, release: bool, id: &ros2_client::RmwRequestId) -> bool {
+        let got = match (self, release) {
+            (Self::Estop { estop, .. }, false) => estop.receive_response(),
+            (Self::Estop { reset, .. }, true) => reset.receive_response(),
+            (Self::Pause(c), _) => c.receive_response(),
+        };
+        matches!(got, Ok(Some((got, _))) if got == *id)
+    }
+}
+
+/// True if `fut` ends within 60 s.
+async fn within_a_minute(fut: impl Future<Output = ()>) -> bool {
+    async {
+        fut.await;
+        true
+    }
+    .or(async {
+        smol::Timer::after(Duration::from_secs(60)).await;
+        false
+    })
+    .await
+}
+
+/// Where the stops of `--estop-at` or `--pause-at` are.
+enum StopState {
     /// Waiting for the next instant.
     Idle,
-    /// `~/estop` sent, not answered yet.
+    /// The stop asked, not answered yet.
     Asked(ros2_client::RmwRequestId),
     /// Holding since the answer.
     Holding,
-    /// `~/reset` sent, not answered yet.
-    Resetting(ros2_client::RmwRequestId),
+    /// The release asked, not answered yet.
+    Releasing(ros2_client::RmwRequestId),
 }
 
-/// Calls `~/estop` at each instant and `~/reset` [`ESTOP_HOLD_S`] after its answer.
-struct EstopDriver {
+/// Asks a stop at each instant and its release [`ESTOP_HOLD_S`] after its answer.
+struct StopDriver {
     /// The instants, in simulated time had nothing held (ns): each hold (the planner
     /// pauses) puts the later ones off by its length.
     at_ns: std::collections::VecDeque<i64>,
-    estop: TriggerClient,
-    reset: TriggerClient,
-    state: EstopState,
+    clients: StopClients,
+    state: StopState,
 }
 
-impl EstopDriver {
+impl StopDriver {
     fn poll(&mut self, rec: &mut Recording) -> anyhow::Result<()> {
         let now = rec.clock_ns;
-        // Walk time stands still from the call to the reset's answer.
+        // Walk time is lost from the call to the release's answer: all of it while the
+        // bridge holds; for a pause, the brake's half of its time and the resume's other
+        // half add up to the same.
         let held_ns: i64 = rec
-            .estops
+            .stops
             .iter()
             .filter_map(|e| e.reset_ns.map(|r| r - e.requested_ns))
             .sum();
-        let answered = |c: &TriggerClient, id: &ros2_client::RmwRequestId| matches!(c.receive_response(), Ok(Some((got, _))) if got == *id);
         match &self.state {
-            EstopState::Idle => {
+            StopState::Idle => {
                 if self.at_ns.front().is_some_and(|&t| now - held_ns >= t) {
                     self.at_ns.pop_front();
-                    let id = self
-                        .estop
-                        .send_request(Default::default())
-                        .map_err(|e| anyhow::anyhow!("call /joint_bridge/estop: {e:?}"))?;
-                    rec.estops.push(record::EstopEvent {
+                    let id = self.clients.call(false)?;
+                    rec.stops.push(record::StopEvent {
                         requested_ns: now,
                         answered_ns: None,
                         reset_ns: None,
                     });
-                    self.state = EstopState::Asked(id);
+                    self.state = StopState::Asked(id);
                 }
             }
-            EstopState::Asked(id) => {
-                if answered(&self.estop, id) {
-                    if let Some(e) = rec.estops.last_mut() {
+            StopState::Asked(id) => {
+                if self.clients.answered(false, id) {
+                    if let Some(e) = rec.stops.last_mut() {
                         e.answered_ns = Some(now);
                     }
-                    self.state = EstopState::Holding;
+                    self.state = StopState::Holding;
                 }
             }
-            EstopState::Holding => {
-                let since = rec.estops.last().and_then(|e| e.answered_ns).unwrap_or(now);
+            StopState::Holding => {
+                let since = rec.stops.last().and_then(|e| e.answered_ns).unwrap_or(now);
                 if now >= since + (ESTOP_HOLD_S * 1e9).round() as i64 {
-                    let id = self
-                        .reset
-                        .send_request(Default::default())
-                        .map_err(|e| anyhow::anyhow!("call /joint_bridge/reset: {e:?}"))?;
-                    self.state = EstopState::Resetting(id);
+                    self.state = StopState::Releasing(self.clients.call(true)?);
                 }
             }
-            EstopState::Resetting(id) => {
-                if answered(&self.reset, id) {
-                    if let Some(e) = rec.estops.last_mut() {
+            StopState::Releasing(id) => {
+                if self.clients.answered(true, id) {
+                    if let Some(e) = rec.stops.last_mut() {
                         e.reset_ns = Some(now);
                     }
-                    self.state = EstopState::Idle;
+                    self.state = StopState::Idle;
                 }
             }
         }
@@ -229,6 +336,9 @@ impl EstopDriver {
 
 /// Runs the walk.
 pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
+    if !o.estop_at_s.is_empty() && !o.pause_at_s.is_empty() {
+        anyhow::bail!("--estop-at and --pause-at: one kind of stop per walk");
+    }
     let role_map = crate::leg_map_of(o.leg_map.as_deref())?;
     let model = crate::model_of(o.robot.as_deref(), role_map.as_ref())?;
     let params = match &o.params {
@@ -376,19 +486,18 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     let walk_pub = node
         .create_publisher::<WalkCommand>(&walk_topic, None)
         .map_err(|e| anyhow::anyhow!("publisher /walk_command: {e:?}"))?;
-    let mut estops = if o.estop_at_s.is_empty() {
+    let mut stops = if o.stop_at_s().is_empty() {
         None
     } else {
         let start_ns = (o.settle_s * 1e9).round() as i64;
-        Some(EstopDriver {
+        Some(StopDriver {
             at_ns: o
-                .estop_at_s
+                .stop_at_s()
                 .iter()
                 .map(|t| start_ns + (t * 1e9).round() as i64)
                 .collect(),
-            estop: trigger_client(&mut node, "estop")?,
-            reset: trigger_client(&mut node, "reset")?,
-            state: EstopState::Idle,
+            clients: StopClients::new(&mut node, o.stop_kind())?,
+            state: StopState::Idle,
         })
     };
     let spinner = node
@@ -449,22 +558,10 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 .map_err(|e| anyhow::anyhow!("publish walk_command: {e:?}"))?;
             smol::Timer::after(Duration::from_millis(100)).await;
         }
-        if let Some(d) = &estops {
-            // Calls sent before the bridge's service is matched would be lost.
-            for client in [&d.estop, &d.reset] {
-                let matched = async {
-                    client.wait_for_service(&node).await;
-                    true
-                }
-                .or(async {
-                    smol::Timer::after(Duration::from_secs(60)).await;
-                    false
-                })
-                .await;
-                if !matched {
-                    anyhow::bail!("the joint_bridge's ~/estop and ~/reset services were not found within 60 s");
-                }
-            }
+        if let Some(d) = &stops
+            && !d.clients.wait(&node).await
+        {
+            anyhow::bail!("the services {} were not found within 60 s", d.clients.names());
         }
         fleet.spawn("sim_bridge")?;
         println!(
@@ -482,7 +579,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
             + plan_duration_s
             + o.tail_s
             + 10.0
-            + o.estop_at_s.len() as f64 * (ESTOP_HOLD_S + 5.0);
+            + o.stop_at_s().len() as f64 * (ESTOP_HOLD_S + 5.0);
         loop {
             let got = async { Some(clock.async_take().await) }
                 .or(async {
@@ -496,7 +593,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 first_clock_wall.get_or_insert(last_clock_wall);
             }
             rec.drain(&phase, &commands, &states, &base, &cop, &support, &fall);
-            if let Some(d) = &mut estops {
+            if let Some(d) = &mut stops {
                 d.poll(&mut rec)?;
             }
             if interrupted.load(std::sync::atomic::Ordering::SeqCst) {

@@ -41,18 +41,19 @@ pub struct Recording {
     pub fall: Option<(i64, String)>,
     /// Messages that could not be read, by topic.
     pub unreadable: BTreeMap<&'static str, u64>,
-    /// The e-stops asked (`--estop-at`), in order.
-    pub estops: Vec<EstopEvent>,
+    /// The stops asked (`--estop-at` or `--pause-at`), in order.
+    pub stops: Vec<StopEvent>,
 }
 
-/// One e-stop of a walk: when it was asked, answered and reset, by the clock (ns).
+/// One stop of a walk (an e-stop or a pause): when it was asked, answered and released, by
+/// the clock (ns).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct EstopEvent {
-    /// `~/estop` sent.
+pub struct StopEvent {
+    /// `~/estop` (or `~/pause` true) sent.
     pub requested_ns: i64,
-    /// Its answer came (the bridge holds by then).
+    /// Its answer came (the bridge holds, or the planner brakes, by then).
     pub answered_ns: Option<i64>,
-    /// `~/reset` answered.
+    /// `~/reset` (or `~/pause` false) answered.
     pub reset_ns: Option<i64>,
 }
 

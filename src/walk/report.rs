@@ -71,23 +71,41 @@ pub struct WalkSummary {
     pub real_time_factor: f64,
     /// Messages that could not be decoded, by topic.
     pub unreadable_messages: BTreeMap<String, u64>,
-    /// Stop anywhere, measured: one entry per `--estop-at` e-stop.
-    pub estops: Vec<EstopMeasure>,
-    /// Over the e-stops, the most a sole carrying the robot at the call lifted or slid
-    /// during the measured hold (m); `null` without e-stops.
+    /// Stop anywhere, measured: one entry per `--estop-at` e-stop or `--pause-at` pause.
+    pub stops: Vec<StopMeasure>,
+    /// Over the stops, the most a sole carrying the robot at the call lifted or slid
+    /// during the measured hold (m); `null` without stops.
     pub stop_anywhere_worst_sole_m: Option<f64>,
-    /// Over the e-stops, the most the base moved from 0.5 s after the call to the end of
-    /// the measured hold (m): still or not; `null` without e-stops.
+    /// Over the stops, the most a sole carrying the robot at the call moved from 0.5 s
+    /// after the call to the end of the measured hold (m): at rest once stopped, or not;
+    /// `null` without stops.
+    pub stop_anywhere_worst_sole_late_m: Option<f64>,
+    /// Over the stops, the most the base moved from 0.5 s after the call to the end of
+    /// the measured hold (m): still or not; `null` without stops.
     pub stop_anywhere_worst_base_late_m: Option<f64>,
 }
 
-/// The part of each e-stop's hold that is measured, from the call (s).
+/// The part of each stop's hold that is measured, from the call (s).
 pub const ESTOP_WINDOW_S: f64 = 2.0;
 
-/// What one e-stop did to the standing robot, from the call over [`ESTOP_WINDOW_S`]:
+/// Which stop a walk is stopped with, anywhere.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StopKind {
+    /// The joint bridge's `~/estop` (the joints brake at their limits and hold), released
+    /// by `~/reset`.
+    Estop,
+    /// The gait planner's `~/pause` (the walk's clock slows to a stop along the plan),
+    /// released by `~/pause` false.
+    Pause,
+}
+
+/// What one stop did to the standing robot, from the call over [`ESTOP_WINDOW_S`]:
 /// ground truth (base pose) and forward kinematics of the measured joints.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct EstopMeasure {
+pub struct StopMeasure {
+    /// Which stop.
+    pub kind: StopKind,
     /// When `~/estop` was called, from the walk's start (s of simulated time less the
     /// earlier holds, from call to reset: the walk's own time, which stands still while held).
     pub t_s: f64,
@@ -102,6 +120,10 @@ pub struct EstopMeasure {
     pub lift_m: [f64; 2],
     /// Largest horizontal drift of the centre of each sole's bottom face (m).
     pub slide_m: [f64; 2],
+    /// How far each sole moved from 0.5 s after the call to the end of the window (m):
+    /// the largest corner rise or centre drift from where it was at 0.5 s (at rest or not,
+    /// once the stop's own motion is over).
+    pub sole_late_m: [f64; 2],
     /// How far the base moved in the first 0.5 s (m): the braking ...
     pub base_early_m: f64,
     /// ... and from 0.5 s to the end of the window (m): at rest or not.
@@ -123,15 +145,28 @@ fn measured_poses(
 /// The bottom corners of both soles, `[left, right]` (m).
 type SoleCorners = [[nalgebra::Point3<f64>; 4]; 2];
 
-/// The measures of each e-stop of the recording.
-fn estop_measures(
+/// How far a sole moved from `from` to `to` (its bottom corners): the largest corner rise
+/// and the horizontal drift of its centre (m).
+fn sole_motion(from: &[nalgebra::Point3<f64>; 4], to: &[nalgebra::Point3<f64>; 4]) -> (f64, f64) {
+    let (mut rise, mut dx, mut dy) = (f64::NEG_INFINITY, 0.0, 0.0);
+    for (a, b) in from.iter().zip(to) {
+        rise = rise.max(b.z - a.z);
+        dx += (b.x - a.x) / 4.0;
+        dy += (b.y - a.y) / 4.0;
+    }
+    (rise, f64::hypot(dx, dy))
+}
+
+/// The measures of each stop of the recording.
+fn stop_measures(
     model: &BipedModel,
     rec: &Recording,
     start_ns: i64,
-) -> anyhow::Result<Vec<EstopMeasure>> {
+    kind: StopKind,
+) -> anyhow::Result<Vec<StopMeasure>> {
     let mut out = Vec::new();
     let mut held_ns = 0i64;
-    for e in &rec.estops {
+    for e in &rec.stops {
         let window_ns = (ESTOP_WINDOW_S * 1e9).round() as i64;
         let ticks: Vec<(i64, &JointState)> = rec
             .states
@@ -146,6 +181,8 @@ fn estop_measures(
         let (mut lift_m, mut slide_m) = ([0.0f64; 2], [0.0f64; 2]);
         let (mut base_early_m, mut base_late_m) = (0.0f64, 0.0f64);
         let mut base_half: Option<nalgebra::Vector3<f64>> = None;
+        let mut soles_half: Option<SoleCorners> = None;
+        let mut sole_late_m = [0.0f64; 2];
         let mut loaded = [false; 2];
         for (t, js) in &ticks {
             let Some(base) = rec.base.get(t) else {
@@ -164,19 +201,20 @@ fn estop_measures(
                 continue;
             };
             for k in 0..2 {
-                let (mut dx, mut dy) = (0.0, 0.0);
-                for c in 0..4 {
-                    lift_m[k] = lift_m[k].max(soles[k][c].z - soles0[k][c].z);
-                    dx += (soles[k][c].x - soles0[k][c].x) / 4.0;
-                    dy += (soles[k][c].y - soles0[k][c].y) / 4.0;
-                }
-                slide_m[k] = slide_m[k].max(f64::hypot(dx, dy));
+                let (rise, drift) = sole_motion(&soles0[k], &soles[k]);
+                lift_m[k] = lift_m[k].max(rise);
+                slide_m[k] = slide_m[k].max(drift);
             }
             if *t - t0 <= 500_000_000 {
                 base_early_m = base_early_m.max((b - b0).norm());
             } else {
                 let h = *base_half.get_or_insert(b);
                 base_late_m = base_late_m.max((b - h).norm());
+                let half = soles_half.get_or_insert(soles);
+                for k in 0..2 {
+                    let (rise, drift) = sole_motion(&half[k], &soles[k]);
+                    sole_late_m[k] = sole_late_m[k].max(rise.max(drift));
+                }
             }
         }
         let phase = rec
@@ -184,7 +222,8 @@ fn estop_measures(
             .range(..=t0)
             .next_back()
             .map_or(PhaseKind::Idle, |(_, p)| p.kind);
-        out.push(EstopMeasure {
+        out.push(StopMeasure {
+            kind,
             t_s: (e.requested_ns - start_ns - held_ns) as f64 * 1e-9,
             answer_delay_s: e
                 .answered_ns
@@ -193,6 +232,7 @@ fn estop_measures(
             loaded,
             lift_m,
             slide_m,
+            sole_late_m,
             base_early_m,
             base_late_m,
         });
@@ -356,7 +396,7 @@ pub fn summarize(
         None => (f64::NAN, f64::NAN),
     };
     let walk_duration_s = end_ns.map_or(t_end, |e| e as f64 * 1e-9) - start_ns as f64 * 1e-9;
-    let estops = estop_measures(model, rec, start_ns)?;
+    let stops = stop_measures(model, rec, start_ns, o.stop_kind())?;
     let simulated_s = rec.clock_ns.min(stop_ns) as f64 * 1e-9;
     Ok(WalkSummary {
         robot: model.robot().name().to_owned(),
@@ -398,7 +438,7 @@ pub fn summarize(
             .iter()
             .map(|(k, v)| ((*k).to_owned(), *v))
             .collect(),
-        stop_anywhere_worst_sole_m: estops
+        stop_anywhere_worst_sole_m: stops
             .iter()
             .flat_map(|e| {
                 (0..2)
@@ -406,7 +446,11 @@ pub fn summarize(
                     .map(|k| e.lift_m[k].max(e.slide_m[k]))
             })
             .reduce(f64::max),
-        stop_anywhere_worst_base_late_m: estops.iter().map(|e| e.base_late_m).reduce(f64::max),
-        estops,
+        stop_anywhere_worst_sole_late_m: stops
+            .iter()
+            .flat_map(|e| (0..2).filter(|&k| e.loaded[k]).map(|k| e.sole_late_m[k]))
+            .reduce(f64::max),
+        stop_anywhere_worst_base_late_m: stops.iter().map(|e| e.base_late_m).reduce(f64::max),
+        stops,
     })
 }

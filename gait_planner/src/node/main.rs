@@ -18,6 +18,11 @@
 //!   `/tf` (tf2_msgs/msg/TFMessage), unless `publish_odom_tf` is false (another node, e.g.
 //!   robot_localization, owns that edge).
 //!
+//! - serves `~/pause` (std_srvs/srv/SetBool): `true` brings the walk to rest along its
+//!   planned path within `pause_brake_time_s` (the plan's clock slows to a stop,
+//!   [`gait_planner::pause`]), `false` brings it back to speed from there. Commands
+//!   received while paused wait for the walk's time to move again.
+//!
 //! Parameters: those of `config/gait.yaml` plus `robot_description_file` (URDF path; empty
 //! for the built-in robot) and `publish_odom_tf` (default true), both read at start. Bad commands are refused or clamped with a warning on `/rosout`
 //! naming the field and value; the walk in progress is unaffected.
@@ -41,6 +46,8 @@ use biped_msgs::msg::{
     AnkleTargets, BoolMsg, Covariance6, GaitPhase, Header, JointState, MarkerArray, Odometry,
     Point, Pose, PoseWithCovariance, TFMessage, Twist, TwistWithCovariance, Vector3, WalkCommand,
 };
+use biped_msgs::srv::{SetBool, TriggerResponse};
+use gait_planner::pause::PlanClock;
 use gait_planner::standing::STANDING_TOLERANCE_RAD;
 use gait_planner::{
     GaitParams, GaitPlanner, GaitSample, PhaseKind, StandGuard, Standing, StartQueue, Stride,
@@ -63,6 +70,23 @@ fn main() -> ExitCode {
             eprintln!("gait_planner: error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// The pause brake time in control ticks.
+fn brake_ticks(c: &GaitParams) -> u32 {
+    (c.pause_brake_time_s * c.control_rate_hz).round() as u32
+}
+
+/// Pauses (`on`) or resumes the walk's clock; what was done, for the answer and the log.
+fn pause(clock: &mut PlanClock, on: bool, brake_s: f64) -> String {
+    match (on, on && clock.pause() || !on && clock.resume()) {
+        (true, true) => {
+            format!("pause: the walk comes to rest along its path within {brake_s:.2} s")
+        }
+        (true, false) => "pause: already paused".into(),
+        (false, true) => format!("resume: the walk comes back to speed within {brake_s:.2} s"),
+        (false, false) => "resume: not paused".into(),
     }
 }
 
@@ -499,6 +523,7 @@ fn run() -> anyhow::Result<()> {
     let bridge_holding = ros.latched_subscription::<BoolMsg>("joint_bridge/holding")?;
     let odom_pub = ros.publisher::<Odometry>("odom")?;
     let markers_pub = ros.publisher::<MarkerArray>("gait/markers")?;
+    let pause_srv = ros.service::<SetBool>("~/pause")?;
     let tf_pub = if odom_tf {
         Some(ros.publisher::<TFMessage>("/tf")?)
     } else {
@@ -527,9 +552,11 @@ fn run() -> anyhow::Result<()> {
         let mut pending: StartQueue<WalkCommand> = StartQueue::default();
         let mut last_stamped: Option<WalkCommand> = None;
         let mut last_sent: Option<(GaitPhase, Option<AnkleTargets>)> = None;
-        // While the joint bridge holds (e-stop, torque off, inactive) the walk pauses: its
+        // While the joint bridge holds (e-stop, torque off, inactive) the walk freezes: its
         // time stands still, so it resumes where the joints were held, not ahead of them.
-        let (mut paused, mut paused_ticks) = (false, 0u64);
+        // `~/pause` slows its time to a stop along the plan instead.
+        let mut bridge_holds = false;
+        let mut clock = PlanClock::new(brake_ticks(planner.config()));
         // Ticks since this node started (k counts from the clock's origin).
         let (mut said_waiting, mut ticks_here) = (false, 0u64);
         while !stop.load(Ordering::SeqCst) {
@@ -552,6 +579,7 @@ fn run() -> anyhow::Result<()> {
                 match planner.set_params(p.clone()) {
                     Ok(()) => {
                         params = p;
+                        clock.set_brake_ticks(brake_ticks(planner.config()));
                         ros.info("parameters changed");
                     }
                     Err(e) => ros.warn(&format!("parameter change not applied: {e}")),
@@ -594,20 +622,28 @@ fn run() -> anyhow::Result<()> {
                 }
             }
             while let Ok(Some((h, _))) = bridge_holding.take() {
-                if h.data != paused {
-                    paused = h.data;
-                    ros.warn(if paused {
+                if h.data != bridge_holds {
+                    bridge_holds = h.data;
+                    ros.warn(if bridge_holds {
                         "the joint bridge holds (e-stop, torque off or inactive): the walk pauses here"
                     } else {
                         "the joint bridge takes commands again: the walk goes on from where it paused"
                     });
                 }
             }
-            if paused {
-                paused_ticks += 1;
+            while let Ok(Some((id, req))) = pause_srv.receive_request() {
+                let said = pause(&mut clock, req.data, planner.config().pause_brake_time_s);
+                ros.info(&said);
+                let answer = TriggerResponse {
+                    success: true,
+                    message: said,
+                };
+                if let Err(e) = pause_srv.send_response(id, answer) {
+                    ros.error(&format!("~/pause: answer not sent: {e:?}"));
+                }
             }
             ticks_here += 1;
-            let t_s = k.saturating_sub(paused_ticks) as f64 / rate;
+            let t_s = clock.plan_ticks(k, bridge_holds) / rate;
             while let Ok(Some((msg, _))) = cmd_vel.take() {
                 for w in commands.cmd_vel(&mut planner, &msg, t_s) {
                     ros.warn(&w);
