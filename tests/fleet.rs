@@ -748,6 +748,73 @@ fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services()
     assert_eq!(v["exits"]["joint_bridge"]["returncode"], 0);
 }
 
+/// An operator's `ros2 service call /gait_planner/pause std_srvs/srv/SetBool "{data: true}"`
+/// mid-walk: the planner answers and brings the walk to rest on its path within its brake
+/// time (0.08 s for the default robot); the joint commands stop changing, the phases still
+/// say where the walk stands (it is paused, not over); asked again, it says so; `false`
+/// takes the walk on from there and the commands move again.
+#[test]
+fn an_rclpy_operator_pauses_and_resumes_the_walk_through_the_planner_service() {
+    let v = peer("pause", 100);
+    assert_walk_moved(&v);
+    let said = |k: &str, needle: &str| {
+        assert_eq!(v[k]["success"], true, "{k}: {}", v[k]);
+        let msg = v[k]["message"].as_str().unwrap();
+        assert!(msg.contains(needle), "{k}: {msg}");
+    };
+    said("pause", "comes to rest along its path");
+    said("pause_again", "already paused");
+    said("resume", "comes back to speed");
+    said("resume_again", "not paused");
+    let at = |c: &Value| c["stamp"].as_f64().unwrap() * 1e-9;
+    let (answered, resume_t) = (
+        v["pause_answered_t"].as_f64().unwrap(),
+        v["resume_t"].as_f64().unwrap(),
+    );
+    let commands = v["commands"].as_array().unwrap();
+    // At rest from the answer plus the brake (0.08 s) and the pipeline's ticks, until the
+    // resume: published every tick, never changing.
+    let held: Vec<&Value> = commands
+        .iter()
+        .filter(|c| at(c) > answered + 0.3 && at(c) < resume_t)
+        .collect();
+    assert!(held.len() > 50, "{} joint commands while paused", held.len());
+    for c in &held {
+        assert_eq!(
+            state_positions(c),
+            state_positions(held[0]),
+            "a joint command changed at t = {} during the pause",
+            at(c)
+        );
+    }
+    let phases = v["phases"].as_array().unwrap();
+    let paused_phases: Vec<&str> = phases
+        .iter()
+        .filter(|p| {
+            let t = p["stamp"].as_f64().unwrap() * 1e-9;
+            t > answered + 0.3 && t < resume_t
+        })
+        .map(|p| p["phase"].as_str().unwrap())
+        .collect();
+    assert!(!paused_phases.is_empty());
+    assert!(
+        paused_phases.iter().all(|p| *p != "idle"),
+        "the walk ended instead of pausing: {paused_phases:?}"
+    );
+    let after: Vec<&Value> = commands
+        .iter()
+        .filter(|c| at(c) > resume_t + 0.5)
+        .collect();
+    assert!(
+        after
+            .iter()
+            .any(|c| state_positions(c) != state_positions(held[0])),
+        "the joints were never commanded again after the resume"
+    );
+    assert!(rosout_has(&v, "gait_planner", &["pause:", "comes to rest"]));
+    assert_eq!(v["exits"]["gait_planner"]["returncode"], 0);
+}
+
 /// The joint bridge as a managed node, from an rclpy lifecycle client (the services
 /// `ros2 lifecycle get/list/set` call): mid-walk, deactivate holds the joints while the walk
 /// goes on commanding, a transition not available is refused, activate by label moves them

@@ -387,6 +387,38 @@ def scenario_estop(bin_dir, params):
     return out
 
 
+def scenario_pause(bin_dir, params):
+    """Mid-walk, an operator calls ~/pause on the gait planner (std_srvs/SetBool, as `ros2
+    service call /gait_planner/pause std_srvs/srv/SetBool "{data: true}"` does), twice; later
+    false, twice. Records every answer, the joint commands and the phases."""
+    from std_srvs.srv import SetBool
+    procs, peer, out = start_flowing(bin_dir, params)
+    if not out["flowing"]:
+        return out
+
+    def answer(r):
+        return None if r is None else {"success": bool(r.success), "message": r.message}
+
+    peer.walk(0)  # until stopped
+    first = peer.commands[-1]["position"]
+    out["moving"] = peer.spin(30.0, lambda: peer.commands[-1]["position"] != first)
+    peer.spin(1.5)
+    out["pause_t"] = time.time()  # the clock of the command stamps
+    out["pause"] = answer(peer.call(SetBool, "/gait_planner/pause", SetBool.Request(data=True)))
+    out["pause_answered_t"] = time.time()
+    out["pause_again"] = answer(peer.call(SetBool, "/gait_planner/pause", SetBool.Request(data=True)))
+    peer.spin(2.0)
+    out["resume_t"] = time.time()
+    out["resume"] = answer(peer.call(SetBool, "/gait_planner/pause", SetBool.Request(data=False)))
+    out["resume_again"] = answer(peer.call(SetBool, "/gait_planner/pause", SetBool.Request(data=False)))
+    peer.spin(2.0)
+    peer.walk(0, stop=True)
+    peer.spin(0.5)
+    out.update(commands=peer.commands, phases=peer.phases, rosout=peer.rosout)
+    out["exits"] = stop_nodes(procs)
+    return out
+
+
 def scenario_lifecycle(bin_dir, params):
     """The joint bridge as a managed node, driven as `ros2 lifecycle` drives one: mid-walk,
     get_state and get_available_transitions; deactivate (by id) holds while the walk goes on
@@ -909,7 +941,7 @@ def stop_started():
 
 def run_scenario(scenario, bin_dir, params):
     result = {"walk": scenario_walk, "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
-              "watchdog": scenario_watchdog, "estop": scenario_estop,
+              "watchdog": scenario_watchdog, "estop": scenario_estop, "pause": scenario_pause,
               "lifecycle": scenario_lifecycle, "supervise": scenario_supervise, "clock": scenario_clock,
               "sim_kill": scenario_sim_kill, "discovery_off": scenario_discovery_off,
               "launch": scenario_launch,
