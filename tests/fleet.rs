@@ -778,7 +778,11 @@ fn an_rclpy_operator_pauses_and_resumes_the_walk_through_the_planner_service() {
         .iter()
         .filter(|c| at(c) > answered + 0.3 && at(c) < resume_t)
         .collect();
-    assert!(held.len() > 50, "{} joint commands while paused", held.len());
+    assert!(
+        held.len() > 50,
+        "{} joint commands while paused",
+        held.len()
+    );
     for c in &held {
         assert_eq!(
             state_positions(c),
@@ -801,10 +805,7 @@ fn an_rclpy_operator_pauses_and_resumes_the_walk_through_the_planner_service() {
         paused_phases.iter().all(|p| *p != "idle"),
         "the walk ended instead of pausing: {paused_phases:?}"
     );
-    let after: Vec<&Value> = commands
-        .iter()
-        .filter(|c| at(c) > resume_t + 0.5)
-        .collect();
+    let after: Vec<&Value> = commands.iter().filter(|c| at(c) > resume_t + 0.5).collect();
     assert!(
         after
             .iter()

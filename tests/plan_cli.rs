@@ -525,6 +525,62 @@ fn twist_turns_a_robot_with_hip_yaw() {
     assert!(dir.join("top_view.svg").exists());
 }
 
+/// The fast parameter files hold the fastest timing of their own steps: `--fastest` on each
+/// finds the durations written in it (so a planner change that moves the bound shows here),
+/// and says what pausing anywhere costs.
+#[test]
+fn the_fast_parameter_files_hold_the_fastest_timing_of_their_steps() {
+    let dir = tmp("fast-files");
+    let op3 = root().join("tests/data/op3_layout.urdf");
+    for (file, robot) in [
+        (root().join("config/gait_fast.yaml"), None),
+        (root().join("tests/data/op3_layout_fast.yaml"), Some(&op3)),
+    ] {
+        let mut args = vec![
+            "--steps",
+            "2",
+            "--fastest",
+            "--params",
+            file.to_str().unwrap(),
+        ];
+        if let Some(r) = robot {
+            args.extend(["--robot", r.to_str().unwrap()]);
+        }
+        let (out, _) = plan_with_output(&dir, &args);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with("fastest timing:"))
+            .unwrap_or_else(|| panic!("{stdout}"));
+        let text = std::fs::read_to_string(&file).unwrap();
+        for key in ["shift", "step", "crouch"] {
+            let found: f64 = line
+                .split(&format!("{key} "))
+                .nth(1)
+                .and_then(|r| r.split(" s").next())
+                .unwrap()
+                .parse()
+                .unwrap();
+            let written: f64 = text
+                .lines()
+                .find_map(|l| l.trim().strip_prefix(&format!("{key}_duration_s: ")))
+                .unwrap_or_else(|| panic!("{}: no {key}_duration_s", file.display()))
+                .parse()
+                .unwrap();
+            assert!(
+                (found - written).abs() < 1e-9,
+                "{}: {key} {written} s written, {found} s found: {line}",
+                file.display()
+            );
+        }
+        assert!(
+            stdout.contains("pausing anywhere within 0.25 s costs"),
+            "{stdout}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `--fastest` prints the durations it found and plans with them: the CSV's phases last
 /// that long (ticks at 100 Hz), and the warning (no torque budget without a servo model;
 /// not for hardware) goes to stderr.

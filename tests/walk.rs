@@ -406,6 +406,59 @@ fn random_instants(seed: u64, n: usize, from: f64, to: f64) -> String {
         .join(",")
 }
 
+/// #16's speed bar, each robot with its fast parameter file (`config/gait_fast.yaml`,
+/// `tests/data/op3_layout_fast.yaml`: longer steps on lower hips at the fastest timing that
+/// can still pause anywhere within 0.25 s): 20 steps through the fleet in physics, no fall,
+/// at >= 0.035 m/s (default robot) and >= 0.045 m/s (OP3 layout), CoP inside >= 99 %, slip
+/// < 5 mm, tilt < 5 deg. Lockstep runs repeat number for number (the test above), so the
+/// OP3 layout's 0.0454 m/s is not a coin toss against its 0.045.
+#[test]
+fn both_robots_walk_twenty_steps_at_the_issue_s_speed_with_their_fast_parameters() {
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let arg = |p: PathBuf| p.to_str().unwrap().to_owned();
+    let default_robot = vec![
+        "--params".to_owned(),
+        arg(root.join("config/gait_fast.yaml")),
+    ];
+    let op3 = vec![
+        "--params".to_owned(),
+        arg(data.join("op3_layout_fast.yaml")),
+        "--robot".to_owned(),
+        arg(data.join("op3_layout.urdf")),
+        "--mjcf".to_owned(),
+        arg(data.join("op3_layout_scene.xml")),
+        "--joint-map".to_owned(),
+        arg(data.join("op3_layout_scene_map.yaml")),
+    ];
+    for (name, domain, extra, speed) in [
+        ("fast-default", 101, default_robot, 0.035),
+        ("fast-op3", 102, op3, 0.045),
+    ] {
+        let out = out_dir(name);
+        let mut args = vec!["--steps", "20"];
+        args.extend(extra.iter().map(String::as_str));
+        let run = walk(domain, &out, &args);
+        assert!(
+            run.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let r = report(&out);
+        eprintln!(
+            "{name}: {} m/s, CoP inside {}, slip {} m, tilt {} deg",
+            r["speed_m_s"], r["cop_inside_fraction"], r["max_foot_slip_m"], r["max_tilt_deg"]
+        );
+        assert!(r["fell"].is_null(), "{name}");
+        let v = num(&r, "speed_m_s");
+        assert!(v >= speed, "{name}: {v} m/s < {speed}");
+        assert!(num(&r, "cop_inside_fraction") >= 0.99, "{name}");
+        assert!(num(&r, "max_foot_slip_m") < 0.005, "{name}");
+        assert!(num(&r, "max_tilt_deg") < 5.0, "{name}");
+        let _ = std::fs::remove_dir_all(&out);
+    }
+}
+
 /// How a walk is stopped anywhere.
 #[derive(Clone, Copy)]
 enum Stop {

@@ -142,14 +142,19 @@ pub fn quadratic_scale_limit(poly: &[Xy], c: Xy, a: Xy, b: Xy, min_m: f64) -> f6
         // The edge is kept while g(σ) = qa σ² + qb σ - spare ≤ 0 (qa, qb: how fast the
         // point approaches the edge); g(0) ≤ 0, so the first positive root, if any.
         let (qa, qb) = (-along(a), -along(b));
-        let root = if qa == 0.0 {
-            if qb > 0.0 { spare / qb } else { f64::INFINITY }
+        let disc = qb * qb + 4.0 * qa * spare;
+        let root = if disc < 0.0 || (qa <= 0.0 && qb <= 0.0) {
+            f64::INFINITY
         } else {
-            let disc = qb * qb + 4.0 * qa * spare;
-            if disc < 0.0 || (qa < 0.0 && qb <= 0.0) {
-                f64::INFINITY
+            // 2·spare / (qb + √disc), the root (-qb + √disc) / (2·qa) without its
+            // cancellation when qa is tiny (a tick at rest, the start of a ramp): that form
+            // gave 0 there, an impossible duration.
+            let sq = disc.sqrt();
+            if qb + sq > 0.0 {
+                2.0 * spare / (qb + sq)
             } else {
-                (-qb + disc.sqrt()) / (2.0 * qa)
+                // spare = 0, qb < 0 < qa: inside at once, back on the edge at -qb / qa.
+                (-qb + sq) / (2.0 * qa)
             }
         };
         s_max = s_max.min(root);
@@ -178,7 +183,9 @@ pub fn torque_speedup_limit(
         armature_kg_m2 * a_rad_s2.abs(),
     );
     if j > 0.0 {
-        (-b + (b * b + 4.0 * j * spare).sqrt()) / (2.0 * j)
+        // The positive root of j·σ² + b·σ = spare, as 2·spare / (b + √(b² + 4·j·spare)):
+        // (-b + √...) / (2·j) cancels to 0 when j·spare is tiny beside b².
+        2.0 * spare / (b + (b * b + 4.0 * j * spare).sqrt())
     } else if b > 0.0 {
         spare / b
     } else {
@@ -455,6 +462,9 @@ mod tests {
             f64::INFINITY
         );
         assert_eq!(torque_speedup_limit(1.6, 0.0, 0.0, 0.25, 0.0, 1.5), 0.0);
+        // A joint barely accelerating: the damping's limit, not 0 by cancellation.
+        let s = torque_speedup_limit(0.5, 2.0, 1e-20, 0.25, 0.005, 1.5);
+        assert!((s - 2.0).abs() < 1e-9, "{s}");
     }
 
     #[test]
@@ -483,6 +493,10 @@ mod tests {
             (s - (1.0 - (1.0f64 - 0.32).sqrt()) / 0.2).abs() < 1e-12,
             "{s}"
         );
+        // A tiny square term beside the linear one (a tick at rest, the start of a ramp):
+        // the linear root, not 0 by cancellation.
+        let s = quadratic_scale_limit(&SQUARE, [0.0, 0.0], [1e-25, 0.0], [1e-3, 0.0], 0.2);
+        assert!((s - 800.0).abs() < 1e-9, "{s}");
         // The point already short of the margin: 0.
         assert_eq!(
             quadratic_scale_limit(&SQUARE, [0.95, 0.0], [0.0, 0.0], [0.0, 0.0], 0.1),
