@@ -99,31 +99,14 @@ fn slot(kind: PhaseKind) -> Option<usize> {
 /// convex, counter-clockwise polygon (infinite when no edge gets closer); 0 when `c`
 /// itself does not keep it.
 pub fn zmp_scale_limit(poly: &[Xy], c: Xy, e: Xy, min_m: f64) -> f64 {
-    let n = poly.len();
-    let mut s_max = f64::INFINITY;
-    for i in 0..n {
-        let (a, b) = (poly[i], poly[(i + 1) % n]);
-        let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
-        let len = ux.hypot(uy);
-        if len == 0.0 {
-            continue;
-        }
-        let dist = (ux * (c[1] - a[1]) - uy * (c[0] - a[0])) / len;
-        let slope = (ux * e[1] - uy * e[0]) / len;
-        if dist < min_m {
-            return 0.0;
-        }
-        if slope < 0.0 {
-            s_max = s_max.min((dist - min_m) / -slope);
-        }
-    }
-    s_max
+    // s = σ² of the quadratic bound without its linear term.
+    quadratic_scale_limit(poly, c, e, [0.0, 0.0], min_m).powi(2)
 }
 
 /// The largest factor σ ≥ 0 for which `c + σ²·a + σ·b` keeps `min_m` from every edge of
 /// the convex, counter-clockwise polygon for every factor up to σ (infinite when no edge
-/// gets closer); 0 when `c` itself does not keep it. With `b = 0` this is
-/// [`zmp_scale_limit`] in σ = √s.
+/// gets closer); 0 when `c` itself does not keep it. With `b = 0` this is the square root
+/// of [`zmp_scale_limit`].
 pub fn quadratic_scale_limit(poly: &[Xy], c: Xy, a: Xy, b: Xy, min_m: f64) -> f64 {
     let n = poly.len();
     let mut s_max = f64::INFINITY;
