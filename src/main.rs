@@ -600,11 +600,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     |t: &gait_planner::timing::Timing| t.shift_duration_s + t.step_duration_s;
                 println!(
                     "pausing anywhere within {:.2} s costs {:.0} % of the speed: without it, shift {:.3} s, step {:.3} s",
-                    if params.pause_brake_time_s > 0.0 {
-                        params.pause_brake_time_s
-                    } else {
-                        gait_planner::timing::PAUSE_BRAKE_BUDGET_S
-                    },
+                    f.max_pause_brake_s.unwrap_or_default(),
                     (1.0 - period(&free) / period(&t)) * 100.0,
                     free.shift_duration_s,
                     free.step_duration_s

@@ -525,6 +525,20 @@ fn twist_turns_a_robot_with_hip_yaw() {
     assert!(dir.join("top_view.svg").exists());
 }
 
+/// The duration `--fastest` printed for `key` (shift, step, crouch) in its line
+/// "fastest timing: shift 0.72 s (Zmp), step 0.58 s (...), crouch 0.31 s (...); ...".
+fn fastest_secs(stdout: &str, key: &str) -> f64 {
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with("fastest timing:"))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    line.split(&format!("{key} "))
+        .nth(1)
+        .and_then(|r| r.split(" s").next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no {key} duration in {line}"))
+}
+
 /// The fast parameter files hold the fastest timing of their own steps: `--fastest` on each
 /// finds the durations written in it (so a planner change that moves the bound shows here),
 /// and says what pausing anywhere costs.
@@ -548,19 +562,9 @@ fn the_fast_parameter_files_hold_the_fastest_timing_of_their_steps() {
         }
         let (out, _) = plan_with_output(&dir, &args);
         let stdout = String::from_utf8_lossy(&out.stdout);
-        let line = stdout
-            .lines()
-            .find(|l| l.starts_with("fastest timing:"))
-            .unwrap_or_else(|| panic!("{stdout}"));
         let text = std::fs::read_to_string(&file).unwrap();
         for key in ["shift", "step", "crouch"] {
-            let found: f64 = line
-                .split(&format!("{key} "))
-                .nth(1)
-                .and_then(|r| r.split(" s").next())
-                .unwrap()
-                .parse()
-                .unwrap();
+            let found = fastest_secs(&stdout, key);
             let written: f64 = text
                 .lines()
                 .find_map(|l| l.trim().strip_prefix(&format!("{key}_duration_s: ")))
@@ -569,7 +573,7 @@ fn the_fast_parameter_files_hold_the_fastest_timing_of_their_steps() {
                 .unwrap();
             assert!(
                 (found - written).abs() < 1e-9,
-                "{}: {key} {written} s written, {found} s found: {line}",
+                "{}: {key} {written} s written, {found} s found: {stdout}",
                 file.display()
             );
         }
@@ -594,15 +598,8 @@ fn fastest_plans_with_the_timing_it_prints() {
         stderr.contains("no torque budget") && stderr.contains("Not for hardware"),
         "{stderr}"
     );
-    // "fastest timing: shift 0.72 s (Zmp), step 0.58 s (...), crouch 0.31 s (...); ..."
-    let line = stdout
-        .lines()
-        .find(|l| l.starts_with("fastest timing:"))
-        .unwrap_or_else(|| panic!("{stdout}"));
-    let secs = |key: &str| -> f64 {
-        let rest = line.split(&format!("{key} ")).nth(1).unwrap();
-        rest.split(" s").next().unwrap().parse().unwrap()
-    };
+    let secs = |key: &str| fastest_secs(&stdout, key);
+    let line: &str = &stdout;
     let (shift, step, crouch) = (secs("shift"), secs("step"), secs("crouch"));
     assert!(shift < 2.0 && step < 1.0 && crouch < 1.0, "{line}");
     let phase = csv.col("phase");

@@ -17,7 +17,7 @@
 //! The first term is the plan's own acceleration, slowed; the second is the braking. The
 //! ZMP `c - z/g · c''` must keep the plan's ZMP margin. For a planned tick and a point `u`
 //! of the ramp the ZMP is `p0 + (1/T_b)·e`, a straight line in `1/T_b`, so the margin bounds
-//! `1/T_b` per polygon edge in closed form ([`crate::timing::zmp_scale_limit`]). Every tick
+//! `1/T_b` per polygon edge in closed form ([`crate::timing::quadratic_scale_limit`]). Every tick
 //! of the plan is reached at every point of some ramp (a pause starting a little earlier),
 //! so checking every (tick, u) pair checks every pause; [`shortest_brake_s`] gives the
 //! shortest brake time that keeps the margin through all of them.
@@ -29,6 +29,7 @@
 use ik_solver::support::Xy;
 use nalgebra::{Point3, Vector3};
 
+use crate::timing::{Edges, quadratic_scale_limit_on};
 use crate::trajectory::{min_jerk, min_jerk_integral, min_jerk_rate};
 use crate::zmp::{GRAVITY_M_S2, cart_table_zmp};
 
@@ -103,11 +104,6 @@ impl PlanClock {
     /// Starts speeding up to full rate. False if not paused or pausing.
     pub fn resume(&mut self) -> bool {
         self.ramp_to(1.0)
-    }
-
-    /// True from a pause to the next resume.
-    pub fn is_paused(&self) -> bool {
-        self.to == 0.0
     }
 
     /// True once a pause has brought the plan to rest.
@@ -217,22 +213,6 @@ pub struct BrakeBound {
     pub resuming: bool,
 }
 
-/// The edges of a convex, counter-clockwise polygon as (unit inward normal n, offset d): a
-/// point p is `n·p - d` inside each.
-fn inward_edges(poly: &[Xy]) -> Vec<(Xy, f64)> {
-    (0..poly.len())
-        .filter_map(|i| {
-            let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
-            let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
-            let len = ux.hypot(uy);
-            (len > 0.0).then(|| {
-                let n = [-uy / len, ux / len];
-                (n, n[0] * a[0] + n[1] * a[1])
-            })
-        })
-        .collect()
-}
-
 /// The points of a ramp [`shortest_brake_s`] checks, pause and resume: the rate `r` and its
 /// change per unit of ramp time (`r'·T_b`).
 pub fn ramp_points() -> impl Iterator<Item = (f64, f64)> {
@@ -256,26 +236,15 @@ pub fn shortest_brake_s(ticks: &[PlannedCom], min_margin_m: f64) -> BrakeBound {
     };
     for (i, t) in ticks.iter().enumerate() {
         let k = t.com_m.z / GRAVITY_M_S2;
-        let edges = inward_edges(&t.polygon);
+        let edges = Edges::of(&t.polygon);
         for (j, (r, r_rate)) in ramp_points().enumerate() {
             let p0 = cart_table_zmp(t.com_m, t.accel_m_s2 * (r * r));
-            // The braking term per 1/T_b: -z/g · c_τ · r'·T_b. Each edge keeps the margin
-            // while its distance (falling by `slope` per 1/T_b) stays above it: the brake
-            // time needed is the largest -slope / room.
+            // The braking term per 1/T_b: -z/g · c_τ · r'·T_b; the margin bounds 1/T_b.
             let e = [
                 -k * t.velocity_m_s.x * r_rate,
                 -k * t.velocity_m_s.y * r_rate,
             ];
-            let mut need = 0.0f64;
-            for (n, d) in &edges {
-                let room = n[0] * p0[0] + n[1] * p0[1] - d - min_margin_m;
-                let slope = n[0] * e[0] + n[1] * e[1];
-                if room < 0.0 {
-                    need = f64::INFINITY;
-                } else if slope < 0.0 {
-                    need = need.max(-slope / room);
-                }
-            }
+            let need = 1.0 / quadratic_scale_limit_on(&edges, p0, [0.0, 0.0], e, min_margin_m);
             if need > worst.brake_s {
                 worst = BrakeBound {
                     brake_s: need,

@@ -70,6 +70,9 @@ pub struct FastestTiming {
     pub bound: [Bound; 3],
     /// Planners built to verify (each runs the full check walks).
     pub checks: u32,
+    /// The longest a pause may take at this timing, as verified (s); `None` when the
+    /// search ignored pausing ([`fastest_timing_with_brake`]).
+    pub max_pause_brake_s: Option<f64>,
     /// The parameters verified: the given ones with these durations and with the step
     /// limits the reference walk settled (back, side, turn) set explicitly, so that a
     /// faster timing is never bought by lowering an auto step limit.
@@ -103,28 +106,51 @@ pub fn zmp_scale_limit(poly: &[Xy], c: Xy, e: Xy, min_m: f64) -> f64 {
     quadratic_scale_limit(poly, c, e, [0.0, 0.0], min_m).powi(2)
 }
 
-/// The largest factor σ ≥ 0 for which `c + σ²·a + σ·b` keeps `min_m` from every edge of
-/// the convex, counter-clockwise polygon for every factor up to σ (infinite when no edge
+/// The edges of a convex, counter-clockwise polygon as (unit inward normal `n`, offset
+/// `d`): a point `p` is `n·p - d` inside each. Made once per polygon for the many points
+/// checked against it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Edges(Vec<(Xy, f64)>);
+
+impl Edges {
+    /// The edges of `poly` (zero-length ones left out).
+    pub fn of(poly: &[Xy]) -> Self {
+        Self(
+            (0..poly.len())
+                .filter_map(|i| {
+                    let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+                    let (ux, uy) = (b[0] - a[0], b[1] - a[1]);
+                    let len = ux.hypot(uy);
+                    (len > 0.0).then(|| {
+                        let n = [-uy / len, ux / len];
+                        (n, n[0] * a[0] + n[1] * a[1])
+                    })
+                })
+                .collect(),
+        )
+    }
+}
+
+/// The largest factor σ ≥ 0 for which `c + σ²·a + σ·b` keeps `min_m` from every edge of the
+/// convex, counter-clockwise polygon for every factor up to σ (infinite when no edge
 /// gets closer); 0 when `c` itself does not keep it. With `b = 0` this is the square root
 /// of [`zmp_scale_limit`].
 pub fn quadratic_scale_limit(poly: &[Xy], c: Xy, a: Xy, b: Xy, min_m: f64) -> f64 {
-    let n = poly.len();
+    quadratic_scale_limit_on(&Edges::of(poly), c, a, b, min_m)
+}
+
+/// [`quadratic_scale_limit`] against edges made once.
+pub fn quadratic_scale_limit_on(edges: &Edges, c: Xy, a: Xy, b: Xy, min_m: f64) -> f64 {
+    let dot = |n: Xy, v: Xy| n[0] * v[0] + n[1] * v[1];
     let mut s_max = f64::INFINITY;
-    for i in 0..n {
-        let (p, q) = (poly[i], poly[(i + 1) % n]);
-        let (ux, uy) = (q[0] - p[0], q[1] - p[1]);
-        let len = ux.hypot(uy);
-        if len == 0.0 {
-            continue;
-        }
-        let along = |v: Xy| (ux * v[1] - uy * v[0]) / len;
-        let spare = (ux * (c[1] - p[1]) - uy * (c[0] - p[0])) / len - min_m;
+    for &(n, d) in &edges.0 {
+        let spare = dot(n, c) - d - min_m;
         if spare < 0.0 {
             return 0.0;
         }
         // The edge is kept while g(σ) = qa σ² + qb σ - spare ≤ 0 (qa, qb: how fast the
         // point approaches the edge); g(0) ≤ 0, so the first positive root, if any.
-        let (qa, qb) = (-along(a), -along(b));
+        let (qa, qb) = (-dot(n, a), -dot(n, b));
         let disc = qb * qb + 4.0 * qa * spare;
         let root = if disc < 0.0 || (qa <= 0.0 && qb <= 0.0) {
             f64::INFINITY
@@ -250,14 +276,15 @@ fn scaled_minimum(
         if let (Some(brake_s), Some(coms)) = (max_brake_s, &coms) {
             let p = &coms[k];
             let kz = p.com_m.z / crate::zmp::GRAVITY_M_S2;
+            let edges = Edges::of(&p.polygon);
             for (r, r_rate) in crate::pause::ramp_points() {
                 let a = [-kz * p.accel_m_s2.x * r * r, -kz * p.accel_m_s2.y * r * r];
                 let b = [
                     -kz * p.velocity_m_s.x * r_rate / brake_s,
                     -kz * p.velocity_m_s.y * r_rate / brake_s,
                 ];
-                pause_speedup[i] = pause_speedup[i].min(quadratic_scale_limit(
-                    &p.polygon,
+                pause_speedup[i] = pause_speedup[i].min(quadratic_scale_limit_on(
+                    &edges,
                     com,
                     a,
                     b,
@@ -421,6 +448,7 @@ pub fn fastest_timing_with_brake(
         },
         bound,
         checks,
+        max_pause_brake_s: max_brake_s,
         params: verified,
     })
 }

@@ -80,7 +80,8 @@ fn brake_ticks(c: &GaitParams) -> u32 {
 
 /// Pauses (`on`) or resumes the walk's clock; what was done, for the answer and the log.
 fn pause(clock: &mut PlanClock, on: bool, brake_s: f64) -> String {
-    match (on, on && clock.pause() || !on && clock.resume()) {
+    let changed = if on { clock.pause() } else { clock.resume() };
+    match (on, changed) {
         (true, true) => {
             format!("pause: the walk comes to rest along its path within {brake_s:.2} s")
         }
