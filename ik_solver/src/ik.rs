@@ -15,7 +15,7 @@
 use std::f64::consts::PI;
 use std::fmt;
 
-use nalgebra::{Isometry3, Rotation3, Vector3};
+use nalgebra::{Isometry3, Vector3};
 
 use crate::error::{IkError, ModelError, ParameterFilesError};
 use crate::legs::{JointRole, Leg, LegRoleMap, Side, find_legs, find_legs_all};
@@ -275,13 +275,36 @@ impl BipedModel {
 
     /// Solves one leg.
     pub fn solve_leg(&self, side: Side, target: &AnkleTarget) -> Result<LegSolution, IkError> {
+        let mut issues = Vec::new();
+        let angles_rad = self.solve_leg_angles(side, target, &mut issues)?;
+        Ok(LegSolution {
+            side,
+            angles_rad,
+            issues,
+        })
+    }
+
+    /// One leg's angles by [`JointRole`]; what had to be clamped is appended to `issues`
+    /// (nothing is allocated when nothing is clamped).
+    ///
+    /// The paper's angles are sums and differences of `atan2`, `asin` and `acos` terms; each
+    /// sum is taken here as one `atan2` of the summed sine and cosine (the angle-sum
+    /// identities), with the quadrant of the separate terms restored, so a leg costs three
+    /// inverse trigonometric calls and a few square roots instead of nine transcendental
+    /// calls. The answer is the same to rounding (`ik_properties.rs` checks it against the
+    /// textbook form).
+    fn solve_leg_angles(
+        &self,
+        side: Side,
+        target: &AnkleTarget,
+        issues: &mut Vec<IkIssue>,
+    ) -> Result<[f64; 6], IkError> {
         let leg = self.leg(side);
         let p = target.ankle_in_hip_m;
         check_finite(side, "ankle_in_hip.x", p.x)?;
         check_finite(side, "ankle_in_hip.y", p.y)?;
         check_finite(side, "ankle_in_hip.z", p.z)?;
         check_finite(side, "foot_yaw", target.foot_yaw_rad)?;
-        let mut issues = Vec::new();
 
         let yaw = if leg.has_yaw() {
             target.foot_yaw_rad
@@ -294,41 +317,57 @@ impl BipedModel {
             }
             0.0
         };
-        // Into the yawed hip frame; the yaw axis passes through the hip point.
-        let p = Rotation3::from_axis_angle(&Vector3::z_axis(), -yaw) * p;
+        // Into the yawed hip frame (a turn by -yaw about z); the yaw axis passes through the
+        // hip point.
+        let (px, py) = if yaw == 0.0 {
+            (p.x, p.y)
+        } else {
+            let (sin, cos) = yaw.sin_cos();
+            (cos * p.x + sin * p.y, cos * p.y - sin * p.x)
+        };
+        let pz = p.z;
 
         // Hip roll turns the leg's plane, which keeps the distance e from the roll axis,
         // until it contains the ankle: the tangent from the ankle to the circle of radius e
         // (ALGORITHM.md, "Leg layouts of real servo humanoids"). With e = 0 it is the
         // paper's atan2(y, -z).
         let e = leg.ankle_lateral_m;
-        let r = p.y.hypot(p.z);
-        let s = if r < e.abs() {
+        let r2 = py * py + pz * pz;
+        // The reach within the leg's plane, down from the roll axis: the tangent's length
+        // sqrt(r^2 - e^2) (with e = 0, r itself); and sin asin(e / r) = e / r, times r.
+        let (in_plane, e_r) = if r2 < e * e {
             issues.push(IkIssue::InsideLateralOffset {
                 side,
-                distance_m: r,
+                distance_m: length(py, pz),
                 offset_m: e,
             });
-            e.signum()
-        } else if r > 0.0 {
-            e / r
+            // asin(+-1): the leg laid sideways (a positive factor of r left out).
+            (0.0, e.signum())
         } else {
-            // The target on the roll axis of a leg without offset: no roll.
+            ((r2 - e * e).sqrt(), e)
+        };
+        // roll = atan2(y, -z) - asin(e / r), as one atan2 of the difference's sine and cosine
+        // (times r), on the branch of atan2(y, -z). On the roll axis itself, no roll.
+        let roll = if r2 > 0.0 {
+            unwrap_difference(
+                (py * in_plane + pz * e_r).atan2(py * e_r - pz * in_plane),
+                py.is_sign_negative(),
+            )
+        } else {
             0.0
         };
-        let roll = p.y.atan2(-p.z) - s.asin();
-        // The reach within the leg's plane, down from the roll axis; the pitch axis sits
-        // `hip_roll_to_pitch_m` below the roll axis and `hip_pitch_forward_m` ahead of the hip.
-        let reach_in_plane = r * (1.0 - s * s).sqrt();
-        let mut x = p.x - leg.hip_pitch_forward_m;
-        let mut z = reach_in_plane - leg.hip_roll_to_pitch_m;
+        // The pitch axis sits `hip_roll_to_pitch_m` below the roll axis and
+        // `hip_pitch_forward_m` ahead of the hip.
+        let mut x = px - leg.hip_pitch_forward_m;
+        let mut z = in_plane - leg.hip_roll_to_pitch_m;
 
-        // The triangle hip pitch - knee - ankle pitch.
+        // The triangle hip pitch - knee - ankle pitch, in squared lengths: no root of d.
         let (l1, l2) = (leg.thigh_m, leg.shin_m);
         let reach = l1 + l2;
         let min = (l1 - l2).abs().max(1e-6 * reach);
-        let mut d = x.hypot(z);
-        if d > reach {
+        let mut d2 = x * x + z * z;
+        if d2 > reach * reach {
+            let d = length(x, z);
             // Straight legs land here by rounding; only a real overshoot is an issue.
             if d > reach + REACH_TOLERANCE_M {
                 issues.push(IkIssue::OutOfReach {
@@ -338,8 +377,9 @@ impl BipedModel {
                 });
             }
             (x, z) = (x * reach / d, z * reach / d);
-            d = reach;
-        } else if d < min {
+            d2 = reach * reach;
+        } else if d2 < min * min {
+            let d = d2.sqrt();
             issues.push(IkIssue::TooClose {
                 side,
                 distance_m: d,
@@ -350,16 +390,22 @@ impl BipedModel {
             } else {
                 (0.0, min)
             };
-            d = min;
+            d2 = min * min;
         }
-        let gamma = ((l1 * l1 + l2 * l2 - d * d) / (2.0 * l1 * l2))
+        // The knee's inner angle (law of cosines).
+        let gamma = ((l1 * l1 + l2 * l2 - d2) / (2.0 * l1 * l2))
             .clamp(-1.0, 1.0)
             .acos();
-        let alpha = x.atan2(z);
-        let beta = ((l1 * l1 + d * d - l2 * l2) / (2.0 * l1 * d))
-            .clamp(-1.0, 1.0)
-            .acos();
-        let thigh = alpha + beta; // forward angle of the thigh from straight down
+        // Forward angle of the thigh from straight down: atan2(x, z) + beta, beta the angle
+        // at the hip between the thigh and the line to the ankle. Its cosine times 2 l1 d is
+        // l1^2 + d^2 - l2^2 (law of cosines), its sine times 2 l1 d the root of
+        // 4 l1^2 d^2 - that^2; the sum as one atan2, on the branch of atan2(x, z).
+        let cos_b = l1 * l1 + d2 - l2 * l2;
+        let sin_b = (4.0 * l1 * l1 * d2 - cos_b * cos_b).max(0.0).sqrt();
+        let thigh = unwrap_sum(
+            (x * cos_b + z * sin_b).atan2(z * cos_b - x * sin_b),
+            x.is_sign_negative(),
+        );
         let shin = thigh - (PI - gamma); // forward angle of the shin
 
         // To URDF joint angles: a positive rotation about +y swings what hangs below backward.
@@ -387,15 +433,12 @@ impl BipedModel {
                 *a = clamped;
             }
         }
-        Ok(LegSolution {
-            side,
-            angles_rad: angles,
-            issues,
-        })
+        Ok(angles)
     }
 
     /// Solves both legs and writes their angles into the joint vector `q` (other joints are
-    /// left as they are). Returns what was clamped, for both legs.
+    /// left as they are). Returns what was clamped, for both legs (empty, unallocated, when
+    /// both targets were solved exactly).
     pub fn solve_legs(
         &self,
         left: &AnkleTarget,
@@ -409,21 +452,23 @@ impl BipedModel {
             });
         }
         // Solve both before writing either: a refused target leaves `q` untouched.
-        let l = self.solve_leg(Side::Left, left)?;
-        let r = self.solve_leg(Side::Right, right)?;
-        let mut issues = l.issues.clone();
-        issues.extend(r.issues.iter().cloned());
-        for sol in [l, r] {
-            self.write_leg(&sol, q);
-        }
+        let mut issues = Vec::new();
+        let l = self.solve_leg_angles(Side::Left, left, &mut issues)?;
+        let r = self.solve_leg_angles(Side::Right, right, &mut issues)?;
+        self.write_angles(Side::Left, &l, q);
+        self.write_angles(Side::Right, &r, q);
         Ok(issues)
     }
 
     /// Writes one leg's angles into a joint vector.
     pub fn write_leg(&self, sol: &LegSolution, q: &mut [f64]) {
-        for (role, joint) in self.leg(sol.side).present() {
+        self.write_angles(sol.side, &sol.angles_rad, q);
+    }
+
+    fn write_angles(&self, side: Side, angles_rad: &[f64; 6], q: &mut [f64]) {
+        for (role, joint) in self.leg(side).present() {
             if let Some(slot) = q.get_mut(joint.dof) {
-                *slot = sol.angle(role);
+                *slot = angles_rad[role as usize];
             }
         }
     }
@@ -436,5 +481,63 @@ impl BipedModel {
             let leg = self.leg(s);
             leg.ankle_world(&self.robot, &poses).coords - leg.hip_in_base_m
         }))
+    }
+}
+
+/// The length of (a, b): a plain square root, the overflow-safe `hypot` only where the squares
+/// overflow (targets beyond 1e150 m), which a robot's targets never reach.
+fn length(a: f64, b: f64) -> f64 {
+    let l = (a * a + b * b).sqrt();
+    if l.is_finite() { l } else { a.hypot(b) }
+}
+
+/// An angle difference atan2(y, x) - psi with psi in [-pi/2, pi/2], computed as one atan2 in
+/// (-pi, pi], back on the branch the separate terms give: from atan2(y, x) in [0, pi] (y of
+/// positive sign) the difference lies in [-pi/2, 3pi/2], from (-pi, 0) in (-3pi/2, pi/2).
+fn unwrap_difference(a: f64, y_negative: bool) -> f64 {
+    if y_negative {
+        if a > 0.5 * PI { a - 2.0 * PI } else { a }
+    } else if a < -0.5 * PI {
+        a + 2.0 * PI
+    } else {
+        a
+    }
+}
+
+/// An angle sum atan2(y, x) + beta with beta in [0, pi], computed as one atan2 in (-pi, pi],
+/// back on the branch the separate terms give: from atan2(y, x) in [0, pi] (y of positive
+/// sign) the sum lies in [0, 2pi]; from (-pi, 0) in (-pi, pi), where atan2 already is.
+fn unwrap_sum(a: f64, y_negative: bool) -> f64 {
+    if !y_negative && a < 0.0 {
+        a + 2.0 * PI
+    } else {
+        a
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The branch of each fused angle, by hand: the one atan2 of the combined sine and cosine
+    /// wraps into (-pi, pi]; the helpers put it back where the separate terms are.
+    #[test]
+    fn fused_angles_come_back_on_the_branch_of_their_terms() {
+        let wrap = |t: f64| t.sin().atan2(t.cos());
+        // atan2(y, x) = 3.0 (y > 0) plus beta = 0.5: 3.5, which atan2 gives as 3.5 - 2 pi.
+        assert!((unwrap_sum(wrap(3.5), false) - 3.5).abs() < 1e-12);
+        assert!((unwrap_sum(wrap(1.2), false) - 1.2).abs() < 1e-12);
+        // From atan2(y, x) = -2.5 (y < 0): -2.5 + 3.0 = 0.5 needs nothing.
+        assert!((unwrap_sum(wrap(0.5), true) - 0.5).abs() < 1e-12);
+        assert!((unwrap_sum(wrap(-2.9), true) + 2.9).abs() < 1e-12);
+        // Differences: 3.0 - (-0.4) = 3.4 (y > 0); -3.0 - 0.4 = -3.4 (y < 0).
+        assert!((unwrap_difference(wrap(3.4), false) - 3.4).abs() < 1e-12);
+        assert!((unwrap_difference(wrap(-3.4), true) + 3.4).abs() < 1e-12);
+        // Inside (-pi/2, pi/2) both are left alone.
+        assert!((unwrap_difference(wrap(-1.0), false) + 1.0).abs() < 1e-12);
+        assert!((unwrap_difference(wrap(1.0), true) - 1.0).abs() < 1e-12);
+        // Lengths: a plain root, and hypot's answer where the squares overflow.
+        assert_eq!(length(3.0, 4.0), 5.0);
+        assert!((length(3e200, 4e200) / 5e200 - 1.0).abs() < 1e-15);
     }
 }

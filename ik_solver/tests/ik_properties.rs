@@ -4,8 +4,8 @@
 
 mod common;
 use common::*;
-use ik_solver::{AnkleTarget, BipedModel, Side};
-use nalgebra::Vector3;
+use ik_solver::{AnkleTarget, BipedModel, IkIssue, JointRole, Side};
+use nalgebra::{Rotation3, Vector3};
 use proptest::prelude::*;
 
 fn check_roundtrip(b: &BipedModel, side: Side, t: AnkleTarget) -> Result<(), TestCaseError> {
@@ -46,6 +46,87 @@ fn check_clamped(b: &BipedModel, side: Side, t: AnkleTarget) -> Result<(), TestC
     Ok(())
 }
 
+/// The paper's angles as written in ALGORITHM.md, each term on its own (atan2, asin, acos),
+/// before the joint limits: the reference for the solver's fused form (sums of angles as one
+/// atan2). Targets pulled onto the reach or pushed out of the fold as the solver documents.
+/// Also the knee's inner angle (pi: stretched).
+fn textbook_angles(b: &BipedModel, side: Side, t: &AnkleTarget) -> ([f64; 6], f64) {
+    use std::f64::consts::PI;
+    let leg = b.leg(side);
+    let yaw = if leg.has_yaw() { t.foot_yaw_rad } else { 0.0 };
+    let p = Rotation3::from_axis_angle(&Vector3::z_axis(), -yaw) * t.ankle_in_hip_m;
+    let e = leg.ankle_lateral_m;
+    let r = p.y.hypot(p.z);
+    let s = if r < e.abs() { e.signum() } else { e / r };
+    let roll = p.y.atan2(-p.z) - s.asin();
+    let mut x = p.x - leg.hip_pitch_forward_m;
+    let mut z = r * (1.0 - s * s).sqrt() - leg.hip_roll_to_pitch_m;
+    let (l1, l2) = (leg.thigh_m, leg.shin_m);
+    let (reach, min) = (l1 + l2, (l1 - l2).abs().max(1e-6 * (l1 + l2)));
+    let mut d = x.hypot(z);
+    if d > reach || d < min {
+        let to = d.clamp(min, reach);
+        (x, z, d) = (x * to / d, z * to / d, to);
+    }
+    let gamma = ((l1 * l1 + l2 * l2 - d * d) / (2.0 * l1 * l2))
+        .clamp(-1.0, 1.0)
+        .acos();
+    let beta = ((l1 * l1 + d * d - l2 * l2) / (2.0 * l1 * d))
+        .clamp(-1.0, 1.0)
+        .acos();
+    let thigh = x.atan2(z) + beta;
+    let shin = thigh - (PI - gamma);
+    let sign = |r: JointRole| leg.joint(r).map_or(1.0, |j| j.axis_sign);
+    let (t0, s0) = (leg.thigh_angle0_rad, leg.shin_angle0_rad);
+    let angles = [
+        sign(JointRole::HipYaw) * yaw,
+        sign(JointRole::HipRoll) * roll,
+        sign(JointRole::HipPitch) * (t0 - thigh),
+        sign(JointRole::Knee) * ((thigh - shin) - (t0 - s0)),
+        sign(JointRole::AnklePitch) * (shin - s0),
+        -sign(JointRole::AnkleRoll) * roll,
+    ];
+    (angles, gamma)
+}
+
+/// Each joint's angle before the limits: the solver's answer, or what a limit issue says was
+/// requested.
+fn requested_angles(b: &BipedModel, side: Side, t: &AnkleTarget) -> [f64; 6] {
+    let sol = b.solve_leg(side, t).unwrap();
+    let mut a = sol.angles_rad;
+    for issue in &sol.issues {
+        if let IkIssue::JointLimit {
+            role,
+            requested_rad,
+            ..
+        } = issue
+        {
+            a[*role as usize] = *requested_rad;
+        }
+    }
+    a
+}
+
+fn check_textbook(b: &BipedModel, side: Side, t: AnkleTarget) -> Result<(), TestCaseError> {
+    prop_assume!(t.ankle_in_hip_m.y.hypot(t.ankle_in_hip_m.z) > 1e-6);
+    let got = requested_angles(b, side, &t);
+    let (want, gamma) = textbook_angles(b, side, &t);
+    // At the stretched or folded leg (targets pulled onto the reach land there) an angle's
+    // cosine is +-1, where acos turns a rounding of the cosine (1e-16) into 1.5e-8 rad, in
+    // either form; elsewhere both agree to 1e-9.
+    let singular = gamma < 1e-3 || std::f64::consts::PI - gamma < 1e-3;
+    let tol = if singular { 1e-7 } else { 1e-9 };
+    for (role, (g, w)) in JointRole::ALL.iter().zip(got.iter().zip(want)) {
+        if b.leg(side).joint(*role).is_some() {
+            prop_assert!(
+                (g - w).abs() < tol,
+                "{role}: {g} against the textbook {w} for {t:?}"
+            );
+        }
+    }
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 2000, max_global_rejects: 20_000, ..ProptestConfig::default() })]
 
@@ -75,6 +156,25 @@ proptest! {
         let b = match robot { 0 => default_biped(), 1 => biped6(), _ => op3_layout() };
         let side = if left { Side::Left } else { Side::Right };
         check_clamped(&b, side, AnkleTarget { ankle_in_hip_m: Vector3::new(x, y, z), foot_yaw_rad: yaw })?;
+    }
+
+    /// Anywhere, reachable or not, above the hip or below: the solver's angles are the
+    /// textbook terms' to rounding, quadrant included. (Only a target on the roll axis itself,
+    /// where atan2(0, -0) is the sign of a zero, is left out.)
+    #[test]
+    fn the_fused_angles_are_the_textbook_terms(x in -1.0..1.0f64, y in -1.0..1.0f64, z in -1.0..1.0f64, yaw in -4.0..4.0f64, left in any::<bool>(), robot in 0..3u8) {
+        let b = match robot { 0 => default_biped(), 1 => biped6(), _ => op3_layout() };
+        let side = if left { Side::Left } else { Side::Right };
+        check_textbook(&b, side, AnkleTarget { ankle_in_hip_m: Vector3::new(x, y, z), foot_yaw_rad: yaw })?;
+    }
+
+    /// The same closer to the hip roll axis than the OP3 layout's 6 mm sideways offset,
+    /// where the leg is laid sideways (asin(+-1)).
+    #[test]
+    fn the_fused_angles_are_the_textbook_terms_inside_the_offset(x in -0.2..0.2f64, y in -0.0055..0.0055f64, z in -0.0055..0.0055f64, left in any::<bool>()) {
+        let b = op3_layout();
+        let side = if left { Side::Left } else { Side::Right };
+        check_textbook(&b, side, AnkleTarget::new(x, y, z))?;
     }
 }
 
