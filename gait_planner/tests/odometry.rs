@@ -70,7 +70,9 @@ fn leg_odometry_of_a_planned_walk_is_the_planned_base() {
         ),
     ] {
         let worst = follow(model, stride, steps);
-        assert!(worst < 1e-9, "{name}: {worst} off the plan");
+        // Rounding only: the leg IK keeps its digits near the stretched leg (Heron's area
+        // instead of an acos of a cosine near -1, which left 1.5e-10 m here).
+        assert!(worst < 1e-12, "{name}: {worst} off the plan");
     }
 }
 

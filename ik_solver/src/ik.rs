@@ -392,16 +392,20 @@ impl BipedModel {
             };
             d2 = min * min;
         }
-        // The knee's inner angle (law of cosines).
-        let gamma = ((l1 * l1 + l2 * l2 - d2) / (2.0 * l1 * l2))
-            .clamp(-1.0, 1.0)
-            .acos();
-        // Forward angle of the thigh from straight down: atan2(x, z) + beta, beta the angle
-        // at the hip between the thigh and the line to the ankle. Its cosine times 2 l1 d is
-        // l1^2 + d^2 - l2^2 (law of cosines), its sine times 2 l1 d the root of
-        // 4 l1^2 d^2 - that^2; the sum as one atan2, on the branch of atan2(x, z).
-        let cos_b = l1 * l1 + d2 - l2 * l2;
-        let sin_b = (4.0 * l1 * l1 * d2 - cos_b * cos_b).max(0.0).sqrt();
+        // The triangle's sines from its area (Heron's formula, factored so that a leg near
+        // its stretch or its fold loses no digits): 2 l1 l2 sin(gamma) = 2 l1 d sin(beta) =
+        // sqrt((d + l2 - l1)(l1 + l2 - d)(d + l1 - l2)(l1 + l2 + d)), gamma the knee's inner
+        // angle, beta the angle at the hip between the thigh and the line to the ankle. Their
+        // cosines times the same factors by the law of cosines. An acos of the cosine alone
+        // would turn a rounding of it into 1e-8 rad near the stretched leg.
+        let d = d2.sqrt();
+        let sin_2a = ((d + l2 - l1) * (reach - d) * (d + l1 - l2) * (reach + d))
+            .max(0.0)
+            .sqrt();
+        let gamma = sin_2a.atan2(l1 * l1 + l2 * l2 - d2);
+        let (sin_b, cos_b) = (sin_2a, l1 * l1 + d2 - l2 * l2);
+        // Forward angle of the thigh from straight down: atan2(x, z) + beta as one atan2, on
+        // the branch of atan2(x, z).
         let thigh = unwrap_sum(
             (x * cos_b + z * sin_b).atan2(z * cos_b - x * sin_b),
             x.is_sign_negative(),

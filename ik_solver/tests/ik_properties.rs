@@ -15,9 +15,9 @@ fn check_roundtrip(b: &BipedModel, side: Side, t: AnkleTarget) -> Result<(), Tes
     b.write_leg(&sol, &mut q);
     let got = b.ankles_in_hips(&q).unwrap()[side.index()];
     let err = (got - t.ankle_in_hip_m).norm();
-    prop_assert!(err < 1e-9, "FK(IK) off by {err} m for {:?}", t);
+    prop_assert!(err < 1e-12, "FK(IK) off by {err} m for {:?}", t);
     let tilt = foot_tilt_rad(b, side, &q, t.foot_yaw_rad);
-    prop_assert!(tilt < 1e-9, "sole tilted by {tilt} rad for {:?}", t);
+    prop_assert!(tilt < 1e-12, "sole tilted by {tilt} rad for {:?}", t);
     Ok(())
 }
 
