@@ -327,3 +327,41 @@ fn a_target_inside_the_sideways_offset_is_flagged() {
         sol.issues
     );
 }
+
+#[test]
+fn a_target_light_years_away_stretches_the_leg_toward_it_without_nan() {
+    // Squares of such lengths overflow f64; the solver brings the target in to 1 km along
+    // its direction first. Straight down, 1e200 m: the leg hangs stretched, no roll, and the
+    // issue names the distance asked for.
+    for b in [default_biped(), biped6(), op3_layout()] {
+        let sol = b
+            .solve_leg(Side::Left, &AnkleTarget::new(0.0, 0.0, -1e200))
+            .unwrap();
+        assert!(sol.angles_rad.iter().all(|a| a.is_finite()), "{sol:?}");
+        assert!(sol.angle(R::HipRoll).abs() < 1e-6, "{sol:?}");
+        assert!(
+            sol.issues.iter().any(|i| matches!(
+                i,
+                ik_solver::IkIssue::OutOfReach { distance_m, .. } if (distance_m / 1e200 - 1.0).abs() < 1e-6
+            )),
+            "{:?}",
+            sol.issues
+        );
+        // Every direction, at the largest finite values: finite and within limits.
+        for p in [
+            [f64::MAX, f64::MAX, f64::MAX],
+            [-f64::MAX, 1e300, -1e-300],
+            [0.0, -1e308, 1e308],
+        ] {
+            let t = AnkleTarget::new(p[0], p[1], p[2]);
+            let sol = b.solve_leg(Side::Right, &t).unwrap();
+            for (role, j) in b.leg(Side::Right).present() {
+                let a = sol.angle(role);
+                assert!(
+                    a.is_finite() && a >= j.limits.lower && a <= j.limits.upper,
+                    "{role} = {a} for {t:?}"
+                );
+            }
+        }
+    }
+}
