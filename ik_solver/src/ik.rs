@@ -369,7 +369,7 @@ impl BipedModel {
         let mut x = px - leg.hip_pitch_forward_m;
         let mut z = in_plane - leg.hip_roll_to_pitch_m;
 
-        // The triangle hip pitch - knee - ankle pitch, in squared lengths: no root of d.
+        // The triangle hip pitch - knee - ankle pitch; its reach compared in squared lengths.
         let (l1, l2) = (leg.thigh_m, leg.shin_m);
         let reach = l1 + l2;
         let min = (l1 - l2).abs().max(1e-6 * reach);
@@ -401,18 +401,18 @@ impl BipedModel {
             };
             d2 = min * min;
         }
-        // The triangle's sines from its area (Heron's formula, factored so that a leg near
-        // its stretch or its fold loses no digits): 2 l1 l2 sin(gamma) = 2 l1 d sin(beta) =
-        // sqrt((d + l2 - l1)(l1 + l2 - d)(d + l1 - l2)(l1 + l2 + d)), gamma the knee's inner
+        // The triangle's sines from its area A (Heron's formula, factored so that a leg near
+        // its stretch or its fold loses no digits): 4 A = 2 l1 l2 sin(gamma) = 2 l1 d sin(beta)
+        // = sqrt((d + l2 - l1)(l1 + l2 - d)(d + l1 - l2)(l1 + l2 + d)), gamma the knee's inner
         // angle, beta the angle at the hip between the thigh and the line to the ankle. Their
         // cosines times the same factors by the law of cosines. An acos of the cosine alone
         // would turn a rounding of it into 1e-8 rad near the stretched leg.
         let d = d2.sqrt();
-        let sin_2a = ((d + l2 - l1) * (reach - d) * (d + l1 - l2) * (reach + d))
+        let area4 = ((d + l2 - l1) * (reach - d) * (d + l1 - l2) * (reach + d))
             .max(0.0)
             .sqrt();
-        let gamma = sin_2a.atan2(l1 * l1 + l2 * l2 - d2);
-        let (sin_b, cos_b) = (sin_2a, l1 * l1 + d2 - l2 * l2);
+        let gamma = area4.atan2(l1 * l1 + l2 * l2 - d2);
+        let (sin_b, cos_b) = (area4, l1 * l1 + d2 - l2 * l2);
         // Forward angle of the thigh from straight down: atan2(x, z) + beta as one atan2, on
         // the branch of atan2(x, z).
         let thigh = unwrap_sum(
