@@ -24,12 +24,12 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context as _, anyhow};
-use smol::stream::StreamExt as _;
 use ros2_client::dds::rustdds::{
     self, CDRDeserializerAdapter, CDRSerializerAdapter, DomainParticipant, QosPolicyBuilder,
     TopicKind, policy,
 };
 use serde::{Deserialize, Serialize};
+use smol::stream::StreamExt as _;
 
 /// Our own DDS domain (the namespace is private anyway).
 const DOMAIN_ID: u16 = 96;
