@@ -584,8 +584,8 @@ fn run_one(
             messages: n,
             lost: n - seen.len(),
             duplicates,
-            median_ms: percentile(&errors, 0.5),
-            p99_ms: percentile(&errors, 0.99),
+            median_ms: common::percentile(&errors, 0.5),
+            p99_ms: common::percentile(&errors, 0.99),
             max_ms: errors.last().copied().unwrap_or(f64::NAN),
             sent_late_ms,
             replayer_cpu,
@@ -617,15 +617,6 @@ fn timing_errors_ms(deltas_ns: &[i64]) -> Vec<f64> {
     let mut e: Vec<f64> = d.iter().map(|x| (x - offset).abs() as f64 * 1e-6).collect();
     e.sort_by(f64::total_cmp);
     e
-}
-
-/// The p-quantile of sorted values (nearest rank).
-fn percentile(sorted: &[f64], p: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    let rank = ((p * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
-    sorted[rank - 1]
 }
 
 fn pct(v: Option<f64>) -> String {

@@ -54,15 +54,7 @@ fn main() -> ExitCode {
 }
 
 fn run() -> anyhow::Result<()> {
-    let mut n = 2000usize;
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        match a.as_str() {
-            "--bench" => {}
-            "--n" => n = args.next().and_then(|s| s.parse().ok()).unwrap_or(n),
-            other => anyhow::bail!("unknown argument `{other}` (options: --n N)"),
-        }
-    }
+    let n = common::count_arg(2000)?;
     if !common::in_netns() {
         return common::reexec_in_netns(&DOMAIN_ID.to_string());
     }
@@ -151,7 +143,7 @@ fn run() -> anyhow::Result<()> {
     println!(
         "Measured on {} (RustDDS {}).",
         common::machine(),
-        common::lock_version(&workspace_root(), "rustdds")
+        common::lock_version(std::path::Path::new(env!("CARGO_MANIFEST_DIR")), "rustdds")
     );
     println!();
     println!("| rate | samples | median | p99 | max | lost |");
@@ -190,11 +182,7 @@ fn run() -> anyhow::Result<()> {
             if counted {
                 let got = lat.len();
                 lat.sort_by(f64::total_cmp);
-                let at = |q: f64| {
-                    lat.get(((lat.len().max(1) - 1) as f64 * q).round() as usize)
-                        .copied()
-                        .unwrap_or(f64::NAN)
-                };
+                let at = |q: f64| common::percentile(&lat, q);
                 println!(
                     "| {rate_hz:.0} Hz | {count} | {:.1} µs | {:.1} µs | {:.1} µs | {} |",
                     at(0.5),
@@ -206,8 +194,4 @@ fn run() -> anyhow::Result<()> {
         }
     }
     Ok(())
-}
-
-fn workspace_root() -> std::path::PathBuf {
-    std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }

@@ -760,13 +760,7 @@ fn measure(
         .map(|a| (a.arrived_ns - a.stamp_ns) as f64 / 1e3)
         .collect();
     lat.sort_by(f64::total_cmp);
-    let pct = |p: f64| -> f64 {
-        if lat.is_empty() {
-            return f64::NAN;
-        }
-        let rank = ((p * lat.len() as f64).ceil() as usize).clamp(1, lat.len());
-        lat[rank - 1]
-    };
+    let pct = |p: f64| common::percentile(&lat, p);
     Ok(RunResult {
         relay,
         rate_hz,
@@ -820,15 +814,6 @@ fn table(results: &[RunResult]) -> String {
         );
     }
     s
-}
-
-fn today() -> String {
-    Command::new("date")
-        .arg("+%F")
-        .output()
-        .ok()
-        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_owned())
-        .unwrap_or_else(|| "?".into())
 }
 
 /// `text` as lines of at most `width` characters (words are not split).
@@ -898,7 +883,7 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
     let _ = writeln!(s, "```\n");
     let measured = format!(
         "Measured {} on {}; release build; ros2-client {}, RustDDS {}{}.",
-        today(),
+        common::today(),
         machine(),
         lock_version(root, "ros2-client"),
         lock_version(root, "rustdds"),

@@ -32,15 +32,7 @@ fn main() -> ExitCode {
 }
 
 fn run() -> anyhow::Result<()> {
-    let mut n = 2000usize;
-    let mut args = std::env::args().skip(1);
-    while let Some(a) = args.next() {
-        match a.as_str() {
-            "--bench" => {}
-            "--n" => n = args.next().and_then(|s| s.parse().ok()).unwrap_or(n),
-            other => anyhow::bail!("unknown argument `{other}` (options: --n N)"),
-        }
-    }
+    let n = common::count_arg(2000)?;
     let here = UdpSocket::bind("127.0.0.1:0")?;
     let echo = UdpSocket::bind("127.0.0.1:0")?;
     let echo_addr = echo.local_addr()?;
@@ -63,7 +55,7 @@ fn run() -> anyhow::Result<()> {
         here.recv_from(&mut buf)?;
         Ok(t.elapsed().as_secs_f64() * 1e6)
     };
-    println!("Measured {} on {}.", date(), common::machine());
+    println!("Measured {} on {}.", common::today(), common::machine());
     println!();
     println!(
         "| rate | round trips | after the idle period: median | p99 | right after it (warm): median | p99 |"
@@ -97,16 +89,5 @@ fn run() -> anyhow::Result<()> {
 /// Median and 99th percentile.
 fn quantiles(v: &mut [f64]) -> (f64, f64) {
     v.sort_by(f64::total_cmp);
-    let at = |q: f64| v[((v.len() as f64 - 1.0) * q).round() as usize];
-    (at(0.5), at(0.99))
-}
-
-fn date() -> String {
-    std::process::Command::new("date")
-        .arg("+%F")
-        .output()
-        .ok()
-        .and_then(|o| String::from_utf8(o.stdout).ok())
-        .map(|s| s.trim().to_owned())
-        .unwrap_or_default()
+    (common::percentile(v, 0.5), common::percentile(v, 0.99))
 }

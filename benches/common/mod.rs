@@ -179,3 +179,44 @@ pub fn warn_if_stale(exe: &Path, root: &Path, sources: &[&str], rebuild: &str) {
         );
     }
 }
+
+/// Today's date (`date +%F`), for a benchmark table's heading.
+pub fn today() -> String {
+    Command::new("date")
+        .arg("+%F")
+        .output()
+        .ok()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_owned())
+        .unwrap_or_else(|| "?".into())
+}
+
+/// The p-quantile of sorted values (nearest rank); NaN for none.
+pub fn percentile(sorted: &[f64], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return f64::NAN;
+    }
+    let rank = ((p * sorted.len() as f64).ceil() as usize).clamp(1, sorted.len());
+    sorted[rank - 1]
+}
+
+/// The arguments of a bench that takes only a count: `--n N` (default `default`); cargo's
+/// `--bench` is ignored. A bad or unknown argument is an error naming it.
+pub fn count_arg(default: usize) -> anyhow::Result<usize> {
+    let mut n = default;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--bench" => {}
+            "--n" => {
+                let v = args.next().ok_or_else(|| anyhow!("--n needs a count"))?;
+                n = v
+                    .parse()
+                    .ok()
+                    .filter(|&n| n > 0)
+                    .ok_or_else(|| anyhow!("--n `{v}` is not a positive count"))?;
+            }
+            other => bail!("unknown argument `{other}` (options: --n N)"),
+        }
+    }
+    Ok(n)
+}
