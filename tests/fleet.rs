@@ -709,11 +709,19 @@ fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services()
         v["estop_answered_t"].as_f64().unwrap(),
         v["reset_t"].as_f64().unwrap(),
     );
-    // Held from the answer plus the braking time (6 rad/s at 100 rad/s²: 0.06 s) and a few
-    // bridge periods, until the reset: nothing moves, though the walk goes on commanding.
+    // The e-stop keeps to the walk's path: the planner, told by ~/holding, brakes its walk
+    // to a pause, which the bridge follows before it holds.
+    assert!(rosout_has(
+        &v,
+        "gait_planner",
+        &["the walk brakes to a pause along its path"]
+    ));
+    // Held from the answer plus the bridge's longest follow (estop_follow_s, 0.4 s), the
+    // braking at the limits after it (6 rad/s at 100 rad/s²: 0.06 s) and a few bridge
+    // periods, until the reset: nothing moves, though the planner goes on commanding.
     let held: Vec<&Value> = states
         .iter()
-        .filter(|s| t(s) > answered + 0.15 && t(s) < reset_t)
+        .filter(|s| t(s) > answered + 0.5 && t(s) < reset_t)
         .collect();
     assert!(held.len() > 50, "joint_states keep coming while holding");
     for s in &held {

@@ -46,7 +46,9 @@ pub const RAMP_POINTS: usize = 40;
 /// // A 4-tick brake: the plan advances 1 - min_jerk over each tick, half the brake in all.
 /// let mut c = PlanClock::new(4);
 /// assert_eq!(c.tick(false), 0.0);
+/// assert!(!c.pausing());
 /// c.pause();
+/// assert!(c.pausing());
 /// for _ in 0..4 {
 ///     c.tick(false);
 /// }
@@ -55,6 +57,7 @@ pub const RAMP_POINTS: usize = 40;
 /// c.tick(false); // at rest: every tick is lost
 /// assert!((c.lost_ticks() - 3.0).abs() < 1e-12);
 /// c.resume();
+/// assert!(!c.pausing());
 /// for _ in 0..5 {
 ///     c.tick(false);
 /// }
@@ -104,6 +107,11 @@ impl PlanClock {
     /// Starts speeding up to full rate. False if not paused or pausing.
     pub fn resume(&mut self) -> bool {
         self.ramp_to(1.0)
+    }
+
+    /// True from a pause until the next resume (slowing down or at rest).
+    pub fn pausing(&self) -> bool {
+        self.to == 0.0
     }
 
     /// True once a pause has brought the plan to rest.

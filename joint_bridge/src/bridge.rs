@@ -83,6 +83,15 @@ pub struct BridgeConfig {
     /// Longest time one tick may move the joints for (s): after a stall of the control
     /// loop, the joints move as far as in this time, not as far as the stall lasted.
     pub max_tick_s: f64,
+    /// A path-keeping emergency stop (stop category 1 along the path): for up to this long
+    /// after [`JointBridge::estop`] (s), the bridge reports the stop at once
+    /// ([`JointBridge::operator`]: the node's latched `~/holding`) but still follows the
+    /// joint commands, which the gait planner, told by `~/holding`, brings to rest along the
+    /// walk's own path; then it holds where the joints come to rest. It holds sooner when the
+    /// commands are at rest (a tick's command the same as the last tick's) or stop coming
+    /// (a tick without one): a dead or silent planner gets the immediate hold. 0: hold at once
+    /// (each joint brakes at its acceleration limit), which can throw a fast walk over.
+    pub estop_follow_s: f64,
 }
 
 impl Default for BridgeConfig {
@@ -95,6 +104,7 @@ impl Default for BridgeConfig {
             default_velocity_rad_s: 2.0,
             acceleration_rad_s2: 100.0,
             max_tick_s: 0.05,
+            estop_follow_s: 0.0,
         }
     }
 }
@@ -114,6 +124,17 @@ struct Ramp {
     from: Vec<f64>,
     /// When it began (the first tick with a command), once it has.
     start_s: Option<f64>,
+}
+
+/// An emergency stop still following the commands ([`BridgeConfig::estop_follow_s`]).
+#[derive(Debug, Clone)]
+struct Follow {
+    /// When it holds at the latest (s).
+    until_s: f64,
+    /// Whether a command came since the last tick.
+    commanded: bool,
+    /// The target at the last tick (NaN before the first after the stop).
+    last_target: Vec<f64>,
 }
 
 /// Smoothstep: 0 → 0, 1 → 1, zero slope at both ends.
@@ -295,6 +316,8 @@ pub struct JointBridge<B: Backend> {
     /// What was last sent: the output, compensated and clamped.
     written: Vec<f64>,
     ramp: Option<Ramp>,
+    /// An emergency stop following the commands to rest, while it does.
+    follow: Option<Follow>,
     /// Current retry delay and when the next retry is due.
     retry_delay_s: f64,
     retry_at_s: Option<f64>,
@@ -340,6 +363,7 @@ impl<B: Backend> JointBridge<B> {
             reported_unknown: HashSet::new(),
             compensation: None,
             ramp: None,
+            follow: None,
             retry_delay_s: config.reconnect.map_or(0.0, |b| b.first_s),
             retry_at_s: None,
         }
@@ -532,6 +556,7 @@ impl<B: Backend> JointBridge<B> {
     /// Holds where the joints come to rest and ignores commands until `why` is released
     /// (an emergency stop, the node going inactive). The torque stays as it is.
     pub fn hold(&mut self, why: Operator) {
+        self.follow = None;
         if self.state == Lifecycle::Active {
             self.hold_where_heading();
         }
@@ -546,6 +571,9 @@ impl<B: Backend> JointBridge<B> {
         if !self.holds.remove(&why) {
             return false;
         }
+        if why == Operator::Estop {
+            self.follow = None;
+        }
         self.said_ignored = false;
         if self.holds.is_empty() {
             // The watchdog starts afresh: silence during the hold is no timeout.
@@ -555,9 +583,34 @@ impl<B: Backend> JointBridge<B> {
         true
     }
 
-    /// Emergency stop: [`Self::hold`] until [`Self::release_estop`].
+    /// Emergency stop: [`Self::hold`] until [`Self::release_estop`], at once or, with
+    /// [`BridgeConfig::estop_follow_s`], after following a commanded stop along the path
+    /// while the commands keep coming and moving (while nothing else holds the bridge).
     pub fn estop(&mut self) {
-        self.hold(Operator::Estop);
+        let following = self.config.estop_follow_s > 0.0
+            && self.state == Lifecycle::Active
+            && self.holds.is_empty()
+            && !self.tripped
+            && self.last_command_s.is_some();
+        match self.last_tick_s {
+            Some(t_s) if following => {
+                // The next tick follows whatever came (the node ticks right after a stop
+                // it serves, with the tick's command already taken): NaN matches nothing.
+                self.follow = Some(Follow {
+                    until_s: t_s + self.config.estop_follow_s,
+                    commanded: true,
+                    last_target: vec![f64::NAN; self.target.len()],
+                });
+                self.holds.insert(Operator::Estop);
+                self.said_ignored = false;
+            }
+            _ => self.hold(Operator::Estop),
+        }
+    }
+
+    /// True while an emergency stop still follows the commands to rest.
+    pub fn estop_following(&self) -> bool {
+        self.follow.is_some()
     }
 
     /// Releases an emergency stop. Returns false if none was on.
@@ -575,6 +628,7 @@ impl<B: Backend> JointBridge<B> {
             }
             (true, _) if self.holds.contains(&Operator::Estop) => return Err(TorqueError::Estop),
             (false, _) => {
+                self.follow = None;
                 self.backend.deactivate()?;
                 self.state = Lifecycle::Inactive;
                 self.holds.insert(Operator::TorqueOff);
@@ -604,7 +658,9 @@ impl<B: Backend> JointBridge<B> {
     /// keep their targets. Ignored while an operator holds the bridge ([`Operator`]).
     pub fn command(&mut self, t_s: f64, names: &[String], positions_rad: &[f64]) -> Vec<Event> {
         let mut events = Vec::new();
-        if let Some(why) = self.operator() {
+        if let Some(f) = &mut self.follow {
+            f.commanded = true;
+        } else if let Some(why) = self.operator() {
             if !self.said_ignored {
                 self.said_ignored = true;
                 events.push(Event::Ignored(why));
@@ -677,6 +733,15 @@ impl<B: Backend> JointBridge<B> {
         self.last_tick_s = Some(t_s);
         if self.state == Lifecycle::Error {
             self.retry(t_s, &mut events);
+        }
+        if let Some(f) = &mut self.follow {
+            // The commands came to rest, stopped coming, or the time is up: hold.
+            if t_s >= f.until_s || !f.commanded || f.last_target == self.target {
+                self.hold(Operator::Estop);
+            } else {
+                f.commanded = false;
+                f.last_target.copy_from_slice(&self.target);
+            }
         }
         if self.state == Lifecycle::Active
             && !self.tripped

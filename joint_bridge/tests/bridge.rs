@@ -13,7 +13,7 @@ use std::sync::{Arc, Mutex};
 
 use joint_bridge::{
     Backend, BackendError, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend,
-    Reading, TimeoutAction,
+    Operator, Reading, TimeoutAction,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -765,6 +765,7 @@ fn watchdog_hold_trips_on_the_first_tick_past_the_timeout_and_keeps_writing_the_
             default_velocity_rad_s: 2.0,
             acceleration_rad_s2: 100.0,
             max_tick_s: 0.05,
+            estop_follow_s: 0.0,
         }
     );
     let (rec, log) = Recorder::new();
@@ -1041,4 +1042,122 @@ fn timeout_action_parses_hold_and_limp_and_names_a_bad_value() {
             "error does not list the choices: {e}"
         );
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The path-keeping emergency stop (estop_follow_s)
+// ---------------------------------------------------------------------------------------------
+
+/// One joint commanded along a ramp of 5 mrad per tick (0.5 rad/s) up to tick 50 (0.25 rad),
+/// then an emergency stop with `follow_s`: the bridge and its recording.
+fn walking_then_estop(follow_s: f64) -> (JointBridge<Recorder>, Arc<Mutex<Vec<Call>>>) {
+    let (rec, log) = Recorder::new();
+    let config = BridgeConfig {
+        estop_follow_s: follow_s,
+        ..patient()
+    };
+    let mut bridge = JointBridge::new(rec, vec![spec("a", -1.0, 1.0, 2.0)], config);
+    bridge.start().unwrap();
+    for i in 0..=50 {
+        bridge.command(t(i), &names(&["a"]), &[0.005 * f64::from(i)]);
+        let _ = bridge.tick(t(i));
+    }
+    bridge.estop();
+    (bridge, log)
+}
+
+/// The written position of tick `i` (the recording holds one write per tick from tick 0).
+fn written_at(log: &Arc<Mutex<Vec<Call>>>, i: u32) -> f64 {
+    let w = writes(log);
+    let (tw, p) = &w[i as usize];
+    assert!(close(*tw, t(i)), "write {i} at {tw}");
+    p[0]
+}
+
+#[test]
+fn an_estop_follows_the_commands_to_rest_then_holds_and_ignores_them() {
+    let (mut b, log) = walking_then_estop(0.3);
+    // Reported at once (the node's ~/holding: the planner brakes), yet still following.
+    assert_eq!(b.operator(), Some(Operator::Estop));
+    assert!(b.estop_following());
+    // The planner's brake: +4, +3, +2, +1 mrad, then the same command (at rest).
+    let braking = [0.254, 0.257, 0.259, 0.26, 0.26];
+    for (i, &q) in (51..).zip(&braking) {
+        let ev = b.command(t(i), &names(&["a"]), &[q]);
+        assert!(ev.is_empty(), "tick {i}: {ev:?}");
+        let _ = b.tick(t(i));
+    }
+    // Followed exactly through tick 54; tick 55's command equals tick 54's: at rest, held.
+    for (i, q) in (51..=55).zip(braking) {
+        assert!(close(written_at(&log, i), q), "tick {i}");
+    }
+    assert!(!b.estop_following());
+    // From then on commands are ignored (said once) and the joint stays at 0.26.
+    assert_eq!(
+        b.command(t(56), &names(&["a"]), &[0.9]),
+        vec![Event::Ignored(Operator::Estop)]
+    );
+    let _ = b.tick(t(56));
+    assert!(close(written_at(&log, 56), 0.26));
+    for i in 57..=70 {
+        assert!(b.command(t(i), &names(&["a"]), &[0.9]).is_empty());
+        let _ = b.tick(t(i));
+        assert!(close(written_at(&log, i), 0.26), "tick {i}");
+    }
+    // Released: the commands move the joint again, at 2 rad/s.
+    assert!(b.release_estop());
+    b.command(t(71), &names(&["a"]), &[0.9]);
+    let _ = b.tick(t(71));
+    assert!(close(written_at(&log, 71), 0.28));
+}
+
+#[test]
+fn an_estop_follows_no_longer_than_its_time() {
+    // Commands that never slow down: followed while t < 0.5 + 0.105 (ticks 51-60, 0.3 rad
+    // at tick 60), held from tick 61 where the joint is (no acceleration limit: at once).
+    let (mut b, log) = walking_then_estop(0.105);
+    for i in 51..=80 {
+        b.command(t(i), &names(&["a"]), &[0.005 * f64::from(i)]);
+        let _ = b.tick(t(i));
+        let expected = 0.005 * f64::from(i.min(60));
+        assert!(
+            (written_at(&log, i) - expected).abs() < 1e-12,
+            "tick {i}: {} rad, expected {expected}",
+            written_at(&log, i)
+        );
+    }
+    assert!(!b.estop_following());
+}
+
+#[test]
+fn an_estop_holds_at_once_when_the_commands_stop_coming() {
+    // A dead planner: no command after the stop. The first tick holds at 0.25 rad.
+    let (mut b, log) = walking_then_estop(0.3);
+    for i in 51..=60 {
+        let _ = b.tick(t(i));
+        assert!(close(written_at(&log, i), 0.25), "tick {i}");
+    }
+    assert!(!b.estop_following());
+    // And without a follow time the stop holds at once: the next command is ignored.
+    let (mut b, log) = walking_then_estop(0.0);
+    assert!(!b.estop_following());
+    assert_eq!(
+        b.command(t(51), &names(&["a"]), &[0.255]),
+        vec![Event::Ignored(Operator::Estop)]
+    );
+    let _ = b.tick(t(51));
+    assert!(close(written_at(&log, 51), 0.25));
+}
+
+#[test]
+fn a_torque_off_during_the_follow_ends_it() {
+    // Another hold while following: the bridge holds for both, commands ignored.
+    let (mut b, _log) = walking_then_estop(0.3);
+    b.set_torque(false).unwrap();
+    assert!(!b.estop_following());
+    assert_eq!(b.operator(), Some(Operator::Estop));
+    assert_eq!(
+        b.command(t(51), &names(&["a"]), &[0.255]),
+        vec![Event::Ignored(Operator::Estop)]
+    );
 }

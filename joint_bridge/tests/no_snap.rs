@@ -511,7 +511,8 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: cases(), ..ProptestConfig::default() })]
 
     /// Random streams of commands, jumps, NaN, silences (the watchdog holds or goes limp),
-    /// stalls, restarts, emergency stops, torque requests and lifecycle transitions (a
+    /// stalls, restarts, emergency stops (holding at once, or following the commands first),
+    /// torque requests and lifecycle transitions (a
     /// shutdown ends the stream's writes): every write is finite, within the joint limits, and between two
     /// writes the speed stays within v_max and changes by at most a_max x dt; after a limp or
     /// a restart the next write continues from the measured pose within the same limits.
@@ -519,6 +520,7 @@ proptest! {
     fn no_write_ever_exceeds_the_velocity_and_acceleration_limits(
         acts in prop::collection::vec(act(), 1..400),
         limp in any::<bool>(),
+        follow in any::<bool>(),
         gravity in -0.5..0.5f64,
     ) {
         let (vmax, amax, lo, hi) = (1.5, 15.0, -1.0, 1.2);
@@ -526,6 +528,8 @@ proptest! {
             watchdog_timeout_s: 0.05,
             on_timeout: if limp { TimeoutAction::Limp } else { TimeoutAction::Hold },
             acceleration_rad_s2: amax,
+            // An e-stop following the commands for up to 5 ticks, or holding at once.
+            estop_follow_s: if follow { 0.05 } else { 0.0 },
             ..BridgeConfig::default()
         };
         let mut b = JointBridge::new(Servos::new(vec![0.3], vec![gravity]), vec![spec("a", lo, hi, vmax)], cfg);

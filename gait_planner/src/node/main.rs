@@ -553,10 +553,13 @@ fn run() -> anyhow::Result<()> {
         let mut pending: StartQueue<WalkCommand> = StartQueue::default();
         let mut last_stamped: Option<WalkCommand> = None;
         let mut last_sent: Option<(GaitPhase, Option<AnkleTargets>)> = None;
-        // While the joint bridge holds (e-stop, torque off, inactive) the walk freezes: its
-        // time stands still, so it resumes where the joints were held, not ahead of them.
-        // `~/pause` slows its time to a stop along the plan instead.
+        // When the joint bridge holds (e-stop, torque off, inactive) the walk's time slows to
+        // a stop along the plan, as `~/pause` does: the bridge's e-stop follows the commands
+        // to that rest before it holds (`estop_follow_s`), so the walk resumes where the
+        // joints were held. (A torque-off or inactive hold is at once: the plan moves on by
+        // the rest of the brake, which the bridge's limiter catches up with on release.)
         let mut bridge_holds = false;
+        let mut paused_for_bridge = false;
         let mut clock = PlanClock::new(brake_ticks(planner.config()));
         // Ticks since this node started (k counts from the clock's origin).
         let (mut said_waiting, mut ticks_here) = (false, 0u64);
@@ -625,8 +628,17 @@ fn run() -> anyhow::Result<()> {
             while let Ok(Some((h, _))) = bridge_holding.take() {
                 if h.data != bridge_holds {
                     bridge_holds = h.data;
+                    // The walk brakes along its path (the bridge's e-stop follows it there
+                    // before it holds), and comes back to speed the same way; a pause the
+                    // operator asked for stays until the operator resumes.
+                    if bridge_holds {
+                        paused_for_bridge = clock.pause();
+                    } else if paused_for_bridge {
+                        paused_for_bridge = false;
+                        clock.resume();
+                    }
                     ros.warn(if bridge_holds {
-                        "the joint bridge holds (e-stop, torque off or inactive): the walk pauses here"
+                        "the joint bridge holds (e-stop, torque off or inactive): the walk brakes to a pause along its path"
                     } else {
                         "the joint bridge takes commands again: the walk goes on from where it paused"
                     });
@@ -644,7 +656,9 @@ fn run() -> anyhow::Result<()> {
                 }
             }
             ticks_here += 1;
-            let t_s = clock.plan_ticks(k, bridge_holds) / rate;
+            // Frozen while the bridge holds and the walk is not pausing (an operator resumed
+            // it meanwhile): the bridge ignores the commands, so the plan must not move on.
+            let t_s = clock.plan_ticks(k, bridge_holds && !clock.pausing()) / rate;
             while let Ok(Some((msg, _))) = cmd_vel.take() {
                 for w in commands.cmd_vel(&mut planner, &msg, t_s) {
                     ros.warn(&w);

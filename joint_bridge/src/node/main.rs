@@ -11,7 +11,9 @@
 //! `watchdog_action` (`hold` or `limp`), `start_ramp_s` (the move from the measured pose to
 //! the first command, 2 s), `acceleration_limit_rad_s2` (every joint, 100),
 //! `default_velocity_rad_s` (joints the URDF leaves without a speed limit, 2), `max_tick_s`
-//! (the longest time one tick moves the joints for, 0.05 s), `sag_compensation_kp` (the servos' stiffness in N·m/rad for the
+//! (the longest time one tick moves the joints for, 0.05 s), `estop_follow_s` (how long an
+//! e-stop keeps following the commands while the planner brakes the walk along its path,
+//! 0.4 s; 0: hold at once), `sag_compensation_kp` (the servos' stiffness in N·m/rad for the
 //! sag compensation; 0 = off), `sim_wait_s` (how long the `sim` backend waits for the
 //! simulator, 10 s), `lockstep_wait_s`, the serial board's `protocol`, `port`, `baud`,
 //! `calibration_file`, `reply_timeout_s`, `retry_first_s`, `retry_max_s`, and the read-only
@@ -63,7 +65,12 @@ use crate::lifecycle::LifecycleServices;
 use crate::serial_setup::{SerialParams, in_range};
 use crate::sim_link::{SimLink, SimLinkHandle};
 
-const PARAMS: [&str; 14] = [
+/// The default of `estop_follow_s`: long enough for the gait planner's pause brake
+/// (`pause_brake_time_s`, at most 0.25 s for the timings `biped plan --fastest` finds) plus
+/// a few ticks for `~/holding` to reach it.
+const ESTOP_FOLLOW_S: f64 = 0.4;
+
+const PARAMS: [&str; 15] = [
     "autostart",
     "robot_description_file",
     "leg_map_file",
@@ -78,6 +85,7 @@ const PARAMS: [&str; 14] = [
     "acceleration_limit_rad_s2",
     "default_velocity_rad_s",
     "max_tick_s",
+    "estop_follow_s",
 ];
 
 fn main() -> ExitCode {
@@ -169,6 +177,13 @@ fn run() -> anyhow::Result<()> {
         1.0,
         "s",
     )?;
+    let estop_follow_s = in_range(
+        "estop_follow_s",
+        setup.f64_param("estop_follow_s", ESTOP_FOLLOW_S)?,
+        0.0,
+        2.0,
+        "s",
+    )?;
     let serial = SerialParams::from_setup(&setup)?;
     let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     let mut joints = JointSpec::from_robot(model.robot());
@@ -234,6 +249,10 @@ fn run() -> anyhow::Result<()> {
             ParameterValue::Double(default_velocity_rad_s),
         ),
         ("max_tick_s".to_string(), ParameterValue::Double(max_tick_s)),
+        (
+            "estop_follow_s".to_string(),
+            ParameterValue::Double(estop_follow_s),
+        ),
         ("autostart".to_string(), ParameterValue::Boolean(autostart)),
     ]);
     declared.extend(serial.declared());
@@ -294,6 +313,7 @@ fn run() -> anyhow::Result<()> {
             default_velocity_rad_s,
             acceleration_rad_s2,
             max_tick_s,
+            estop_follow_s,
         },
     );
     if kp > 0.0 {
@@ -550,7 +570,12 @@ impl OperatorServices {
         };
         while let Ok(Some((id, _))) = self.estop.receive_request() {
             bridge.estop();
-            let a = answer(Ok("emergency stop: holding where the joints come to rest; joint commands ignored until ~/reset".into()));
+            let said = if bridge.estop_following() {
+                "emergency stop: the walk brakes along its path (joint commands followed until they come to rest), then holds; joint commands ignored until ~/reset"
+            } else {
+                "emergency stop: holding where the joints come to rest; joint commands ignored until ~/reset"
+            };
+            let a = answer(Ok(said.into()));
             let _ = self.estop.send_response(id, a);
         }
         while let Ok(Some((id, _))) = self.reset.receive_request() {
