@@ -88,9 +88,10 @@ pub struct BridgeConfig {
     /// ([`JointBridge::operator`]: the node's latched `~/holding`) but still follows the
     /// joint commands, which the gait planner, told by `~/holding`, brings to rest along the
     /// walk's own path; then it holds where the joints come to rest. It holds sooner when the
-    /// commands are at rest (a tick's command the same as the last tick's) or stop coming
-    /// (a tick without one): a dead or silent planner gets the immediate hold. 0: hold at once
-    /// (each joint brakes at its acceleration limit), which can throw a fast walk over.
+    /// commands are at rest (a new command the same as the one before) or stop coming (none
+    /// for [`FOLLOW_SILENCE_S`]): a dead or silent planner gets the immediate hold, only
+    /// that much later. 0: hold at once (each joint brakes at its acceleration limit), which
+    /// can throw a fast walk over.
     pub estop_follow_s: f64,
 }
 
@@ -126,14 +127,20 @@ struct Ramp {
     start_s: Option<f64>,
 }
 
+/// How long an emergency stop that follows the commands ([`BridgeConfig::estop_follow_s`])
+/// waits for the next one before it holds (s): five periods of a 100 Hz planner, so a
+/// command that comes a tick late (the planner's and the bridge's clocks are not in step on
+/// hardware) does not end the follow, and a planner that has died ends it within 50 ms.
+pub const FOLLOW_SILENCE_S: f64 = 0.05;
+
 /// An emergency stop still following the commands ([`BridgeConfig::estop_follow_s`]).
 #[derive(Debug, Clone)]
 struct Follow {
     /// When it holds at the latest (s).
     until_s: f64,
-    /// Whether a command came since the last tick.
+    /// Whether a usable command came since the last tick.
     commanded: bool,
-    /// The target at the last tick (NaN before the first after the stop).
+    /// The target after the last command (NaN before the first after the stop).
     last_target: Vec<f64>,
 }
 
@@ -594,11 +601,11 @@ impl<B: Backend> JointBridge<B> {
             && self.last_command_s.is_some();
         match self.last_tick_s {
             Some(t_s) if following => {
-                // The next tick follows whatever came (the node ticks right after a stop
-                // it serves, with the tick's command already taken): NaN matches nothing.
+                // The first command after the stop is a move (NaN matches nothing): the
+                // node ticks right after a stop it serves, with the tick's command taken.
                 self.follow = Some(Follow {
                     until_s: t_s + self.config.estop_follow_s,
-                    commanded: true,
+                    commanded: false,
                     last_target: vec![f64::NAN; self.target.len()],
                 });
                 self.holds.insert(Operator::Estop);
@@ -658,9 +665,9 @@ impl<B: Backend> JointBridge<B> {
     /// keep their targets. Ignored while an operator holds the bridge ([`Operator`]).
     pub fn command(&mut self, t_s: f64, names: &[String], positions_rad: &[f64]) -> Vec<Event> {
         let mut events = Vec::new();
-        if let Some(f) = &mut self.follow {
-            f.commanded = true;
-        } else if let Some(why) = self.operator() {
+        if self.follow.is_none()
+            && let Some(why) = self.operator()
+        {
             if !self.said_ignored {
                 self.said_ignored = true;
                 events.push(Event::Ignored(why));
@@ -707,6 +714,9 @@ impl<B: Backend> JointBridge<B> {
         }
         if any {
             self.last_command_s = Some(t_s);
+            if let Some(f) = &mut self.follow {
+                f.commanded = true;
+            }
             if self.tripped && self.state != Lifecycle::Error {
                 self.tripped = false;
                 if self.state == Lifecycle::Inactive {
@@ -735,10 +745,14 @@ impl<B: Backend> JointBridge<B> {
             self.retry(t_s, &mut events);
         }
         if let Some(f) = &mut self.follow {
-            // The commands came to rest, stopped coming, or the time is up: hold.
-            if t_s >= f.until_s || !f.commanded || f.last_target == self.target {
+            // Hold once the time is up, the commands stopped coming or came to rest.
+            let silent = self
+                .last_command_s
+                .is_none_or(|c| t_s - c > FOLLOW_SILENCE_S);
+            let at_rest = f.commanded && f.last_target == self.target;
+            if t_s >= f.until_s || silent || at_rest {
                 self.hold(Operator::Estop);
-            } else {
+            } else if f.commanded {
                 f.commanded = false;
                 f.last_target.copy_from_slice(&self.target);
             }

@@ -1130,14 +1130,22 @@ fn an_estop_follows_no_longer_than_its_time() {
 }
 
 #[test]
-fn an_estop_holds_at_once_when_the_commands_stop_coming() {
-    // A dead planner: no command after the stop. The first tick holds at 0.25 rad.
+fn an_estop_holds_when_the_commands_stop_coming() {
+    // A dead planner: no command after the stop (the last at 0.5 s). Still following 40 ms
+    // on (tick 54), held once the silence passes FOLLOW_SILENCE_S (50 ms; by tick 56), and
+    // the joint never moved from 0.25 rad.
+    assert_eq!(joint_bridge::FOLLOW_SILENCE_S, 0.05);
     let (mut b, log) = walking_then_estop(0.3);
     for i in 51..=60 {
         let _ = b.tick(t(i));
         assert!(close(written_at(&log, i), 0.25), "tick {i}");
+        if i == 54 {
+            assert!(b.estop_following(), "tick {i}");
+        }
+        if i == 56 {
+            assert!(!b.estop_following(), "tick {i}");
+        }
     }
-    assert!(!b.estop_following());
     // And without a follow time the stop holds at once: the next command is ignored.
     let (mut b, log) = walking_then_estop(0.0);
     assert!(!b.estop_following());
@@ -1147,6 +1155,25 @@ fn an_estop_holds_at_once_when_the_commands_stop_coming() {
     );
     let _ = b.tick(t(51));
     assert!(close(written_at(&log, 51), 0.25));
+}
+
+#[test]
+fn an_estop_follows_commands_that_come_every_other_tick() {
+    // A planner at half the bridge's rate (or a tick late now and then, clocks not in step):
+    // 10 mrad every other tick, still moving at tick 70 (0.35 rad), still followed exactly.
+    let (mut b, log) = walking_then_estop(0.3);
+    for i in 51..=70 {
+        if i % 2 == 0 {
+            b.command(t(i), &names(&["a"]), &[0.25 + 0.005 * f64::from(i - 50)]);
+        }
+        let _ = b.tick(t(i));
+        assert!(b.estop_following(), "tick {i}");
+    }
+    assert!(
+        (written_at(&log, 70) - 0.35).abs() < 1e-12,
+        "{}",
+        written_at(&log, 70)
+    );
 }
 
 #[test]
