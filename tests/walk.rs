@@ -407,16 +407,12 @@ fn random_instants(seed: u64, n: usize, from: f64, to: f64) -> String {
         .join(",")
 }
 
-/// #16's speed bar, each robot with its fast parameter file (`config/gait_fast.yaml`,
-/// `tests/data/op3_layout_fast.yaml`: longer steps on lower hips at the fastest timing that
-/// can still pause anywhere within 0.25 s): 20 steps through the fleet in physics, no fall,
-/// at >= 0.035 m/s (default robot) and >= 0.045 m/s (OP3 layout), CoP inside >= 99 %, slip
-/// < 5 mm, tilt < 5 deg. Lockstep runs repeat number for number (the test above), so the
-/// OP3 layout's 0.0454 m/s is not a coin toss against its 0.045.
-#[test]
-fn both_robots_walk_twenty_steps_at_the_issue_s_speed_with_their_fast_parameters() {
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+/// `biped walk` arguments of each robot's fast walk: the default robot with
+/// `config/gait_fast.yaml`, the OP3-layout test robot (its URDF, scene and joint map) with
+/// `tests/data/op3_layout_fast.yaml`.
+fn fast_walk_args() -> [Vec<String>; 2] {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let data = root.join("tests/data");
     let arg = |p: PathBuf| p.to_str().unwrap().to_owned();
     let default_robot = vec![
         "--params".to_owned(),
@@ -432,6 +428,18 @@ fn both_robots_walk_twenty_steps_at_the_issue_s_speed_with_their_fast_parameters
         "--joint-map".to_owned(),
         arg(data.join("op3_layout_scene_map.yaml")),
     ];
+    [default_robot, op3]
+}
+
+/// #16's speed bar, each robot with its fast parameter file (`config/gait_fast.yaml`,
+/// `tests/data/op3_layout_fast.yaml`: longer steps on lower hips at the fastest timing that
+/// can still pause anywhere within 0.25 s): 20 steps through the fleet in physics, no fall,
+/// at >= 0.035 m/s (default robot) and >= 0.045 m/s (OP3 layout), CoP inside >= 99 %, slip
+/// < 5 mm, tilt < 5 deg. Lockstep runs repeat number for number (the test above), so the
+/// OP3 layout's 0.0454 m/s is not a coin toss against its 0.045.
+#[test]
+fn both_robots_walk_twenty_steps_at_the_issue_s_speed_with_their_fast_parameters() {
+    let [default_robot, op3] = fast_walk_args();
     for (name, domain, extra, speed) in [
         ("fast-default", 101, default_robot, 0.035),
         ("fast-op3", 102, op3, 0.045),
@@ -606,23 +614,7 @@ fn the_fastest_walk_pauses_anywhere_without_falling() {
 /// 0.5 s on: printed, not asserted (#16 asks 5 mm).
 #[test]
 fn both_fast_walks_estop_anywhere_without_falling() {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let data = root.join("tests/data");
-    let arg = |p: PathBuf| p.to_str().unwrap().to_owned();
-    let default_robot = vec![
-        "--params".to_owned(),
-        arg(root.join("config/gait_fast.yaml")),
-    ];
-    let op3 = vec![
-        "--params".to_owned(),
-        arg(data.join("op3_layout_fast.yaml")),
-        "--robot".to_owned(),
-        arg(data.join("op3_layout.urdf")),
-        "--mjcf".to_owned(),
-        arg(data.join("op3_layout_scene.xml")),
-        "--joint-map".to_owned(),
-        arg(data.join("op3_layout_scene_map.yaml")),
-    ];
+    let [default_robot, op3] = fast_walk_args();
     for (name, domain, extra) in [
         ("estop-fast", 104, default_robot),
         ("estop-fast-op3", 105, op3),
