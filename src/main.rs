@@ -613,7 +613,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     "no torque budget (servo_damping_nm_s_per_rad and servo_armature_kg_m2 unset)"
                 };
                 eprintln!(
-                    "note: the fastest timing the planning checks allow (joint speed limits, ZMP margin, pausing within the brake time, {torque}); the joint bridge's e-stop, which freezes the joints at once, can still topple a robot walking this fast (BENCHMARKS.md, \"Walking faster\"). Not for hardware yet."
+                    "note: the fastest timing the planning checks allow (joint speed limits, ZMP margin, pausing within the brake time, {torque}); the joint bridge's e-stop keeps to the path (BENCHMARKS.md, \"An e-stop that keeps to the path\"), but the servos lag and the measured CoP runs ahead of the plan's ZMP at these speeds (\"Walking faster\"). Not for hardware yet."
                 );
                 params = f.params;
             }
