@@ -709,12 +709,26 @@ fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services()
         v["estop_answered_t"].as_f64().unwrap(),
         v["reset_t"].as_f64().unwrap(),
     );
-    // The e-stop keeps to the walk's path: the planner, told by ~/holding, brakes its walk
-    // to a pause, which the bridge follows before it holds.
+    // The e-stop keeps to the walk's path: the bridge, stopped mid-walk with commands
+    // coming, follows them; the planner, told by ~/holding, brakes its walk to a pause.
+    // (Wall clock here, planner and bridge not in step: the follow must outlast a late
+    // command.)
+    assert!(rosout_has(
+        &v,
+        "joint_bridge",
+        &["emergency stop: the walk brakes along its path"]
+    ));
     assert!(rosout_has(
         &v,
         "gait_planner",
         &["the walk brakes to a pause along its path"]
+    ));
+    // And it held once the walk stood (in lockstep the reason is always that the commands
+    // came to rest; on this wall clock a stalled planner could also end it by silence).
+    assert!(rosout_has(
+        &v,
+        "joint_bridge",
+        &["emergency stop: holding after following the commands for"]
     ));
     // Held from the answer plus the bridge's longest follow (estop_follow_s, 0.4 s), the
     // braking at the limits after it (6 rad/s at 100 rad/s²: 0.06 s) and a few bridge

@@ -542,6 +542,19 @@ fn stops_anywhere_through_the_fleet(
         }
     }
     assert!(loaded_soles >= 20, "{loaded_soles} loaded soles measured");
+    if let Stop::Estop = stop {
+        // Every e-stop followed the planner's brake until the walk stood (lockstep: a
+        // command every tick, so never by silence), then held.
+        let log = std::fs::read_to_string(out.join("logs/joint_bridge.log")).unwrap();
+        let at_rest = log
+            .lines()
+            .filter(|l| {
+                l.contains("holding after following the commands")
+                    && l.contains("(the commands came to rest)")
+            })
+            .count();
+        assert_eq!(at_rest, 20, "e-stops that followed the walk to rest");
+    }
     let worst = num(&r, "stop_anywhere_worst_sole_m");
     let late = num(&r, "stop_anywhere_worst_sole_late_m");
     eprintln!("worst loaded sole {worst} m from the call, {late} m from 0.5 s on");

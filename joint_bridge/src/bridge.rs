@@ -136,6 +136,8 @@ pub const FOLLOW_SILENCE_S: f64 = 0.05;
 /// An emergency stop still following the commands ([`BridgeConfig::estop_follow_s`]).
 #[derive(Debug, Clone)]
 struct Follow {
+    /// When it began (the last tick before the stop) (s).
+    from_s: f64,
     /// When it holds at the latest (s).
     until_s: f64,
     /// Whether a usable command came since the last tick.
@@ -208,6 +210,24 @@ pub enum Event {
     BackendNotice(String),
     /// Commands are ignored while an operator holds the bridge (said once per hold).
     Ignored(Operator),
+    /// An emergency stop that followed the commands now holds.
+    EstopHeld {
+        /// How long it followed them (s).
+        followed_s: f64,
+        /// Why it stopped following.
+        why: FollowEnd,
+    },
+}
+
+/// Why an emergency stop stopped following the commands ([`BridgeConfig::estop_follow_s`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FollowEnd {
+    /// The commands came to rest: the walk stopped along its path.
+    AtRest,
+    /// No command for [`FOLLOW_SILENCE_S`]: the command source is gone.
+    Silent,
+    /// `estop_follow_s` ran out with the commands still moving.
+    TimeUp,
 }
 
 impl fmt::Display for Event {
@@ -261,6 +281,17 @@ impl fmt::Display for Event {
                 "backend configured and active again; ramping from the measured pose"
             ),
             Event::BackendNotice(n) => write!(f, "{n}"),
+            Event::EstopHeld { followed_s, why } => {
+                let why = match why {
+                    FollowEnd::AtRest => "the commands came to rest",
+                    FollowEnd::Silent => "the commands stopped coming",
+                    FollowEnd::TimeUp => "estop_follow_s ran out, the commands still moving",
+                };
+                write!(
+                    f,
+                    "emergency stop: holding after following the commands for {followed_s:.2} s ({why})"
+                )
+            }
             Event::Ignored(Operator::Estop) => write!(
                 f,
                 "joint commands ignored: emergency stop (release it with ~/reset)"
@@ -604,6 +635,7 @@ impl<B: Backend> JointBridge<B> {
                 // The first command after the stop is a move (NaN matches nothing): the
                 // node ticks right after a stop it serves, with the tick's command taken.
                 self.follow = Some(Follow {
+                    from_s: t_s,
                     until_s: t_s + self.config.estop_follow_s,
                     commanded: false,
                     last_target: vec![f64::NAN; self.target.len()],
@@ -750,7 +782,20 @@ impl<B: Backend> JointBridge<B> {
                 .last_command_s
                 .is_none_or(|c| t_s - c > FOLLOW_SILENCE_S);
             let at_rest = f.commanded && f.last_target == self.target;
-            if t_s >= f.until_s || silent || at_rest {
+            let end = if at_rest {
+                Some(FollowEnd::AtRest)
+            } else if silent {
+                Some(FollowEnd::Silent)
+            } else if t_s >= f.until_s {
+                Some(FollowEnd::TimeUp)
+            } else {
+                None
+            };
+            if let Some(why) = end {
+                events.push(Event::EstopHeld {
+                    followed_s: t_s - f.from_s,
+                    why,
+                });
                 self.hold(Operator::Estop);
             } else if f.commanded {
                 f.commanded = false;

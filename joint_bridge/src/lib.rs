@@ -25,8 +25,8 @@ pub mod serial;
 
 pub use backend::{Backend, BackendError, DiagnosticLevel, Diagnostics, Lifecycle, Reading};
 pub use bridge::{
-    Backoff, BridgeConfig, Event, FOLLOW_SILENCE_S, JointBridge, MAX_UNKNOWN_REPORTED, Operator,
-    TimeoutAction, TorqueError,
+    Backoff, BridgeConfig, Event, FOLLOW_SILENCE_S, FollowEnd, JointBridge, MAX_UNKNOWN_REPORTED,
+    Operator, TimeoutAction, TorqueError,
 };
 pub use compensation::{CompensationError, SagCompensation};
 pub use limits::JointSpec;

@@ -12,8 +12,8 @@ use common::{names, spec};
 use std::sync::{Arc, Mutex};
 
 use joint_bridge::{
-    Backend, BackendError, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend,
-    Operator, Reading, TimeoutAction,
+    Backend, BackendError, BridgeConfig, Event, FollowEnd, JointBridge, JointSpec, Lifecycle,
+    MockBackend, Operator, Reading, TimeoutAction,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -1082,11 +1082,20 @@ fn an_estop_follows_the_commands_to_rest_then_holds_and_ignores_them() {
     assert!(b.estop_following());
     // The planner's brake: +4, +3, +2, +1 mrad, then the same command (at rest).
     let braking = [0.254, 0.257, 0.259, 0.26, 0.26];
+    let mut held = Vec::new();
     for (i, &q) in (51..).zip(&braking) {
         let ev = b.command(t(i), &names(&["a"]), &[q]);
         assert!(ev.is_empty(), "tick {i}: {ev:?}");
-        let _ = b.tick(t(i));
+        let (_, ev) = b.tick(t(i));
+        held.extend(ev.into_iter().map(|e| (i, e)));
     }
+    // Said once, at tick 55: followed from tick 50's time for 0.05 s, the commands at rest.
+    assert_eq!(held.len(), 1, "{held:?}");
+    let (i, Event::EstopHeld { followed_s, why }) = &held[0] else {
+        panic!("{held:?}");
+    };
+    assert_eq!((*i, *why), (55, FollowEnd::AtRest));
+    assert!((followed_s - 0.05).abs() < 1e-12, "{followed_s}");
     // Followed exactly through tick 54; tick 55's command equals tick 54's: at rest, held.
     for (i, q) in (51..=55).zip(braking) {
         assert!(close(written_at(&log, i), q), "tick {i}");
@@ -1118,7 +1127,13 @@ fn an_estop_follows_no_longer_than_its_time() {
     let (mut b, log) = walking_then_estop(0.105);
     for i in 51..=80 {
         b.command(t(i), &names(&["a"]), &[0.005 * f64::from(i)]);
-        let _ = b.tick(t(i));
+        let (_, ev) = b.tick(t(i));
+        if i == 61 {
+            assert!(
+                matches!(ev[..], [Event::EstopHeld { why: FollowEnd::TimeUp, followed_s }] if (followed_s - 0.11).abs() < 1e-12),
+                "{ev:?}"
+            );
+        }
         let expected = 0.005 * f64::from(i.min(60));
         assert!(
             (written_at(&log, i) - expected).abs() < 1e-12,
@@ -1136,8 +1151,10 @@ fn an_estop_holds_when_the_commands_stop_coming() {
     // the joint never moved from 0.25 rad.
     assert_eq!(joint_bridge::FOLLOW_SILENCE_S, 0.05);
     let (mut b, log) = walking_then_estop(0.3);
+    let mut held = Vec::new();
     for i in 51..=60 {
-        let _ = b.tick(t(i));
+        let (_, ev) = b.tick(t(i));
+        held.extend(ev);
         assert!(close(written_at(&log, i), 0.25), "tick {i}");
         if i == 54 {
             assert!(b.estop_following(), "tick {i}");
@@ -1146,6 +1163,16 @@ fn an_estop_holds_when_the_commands_stop_coming() {
             assert!(!b.estop_following(), "tick {i}");
         }
     }
+    assert!(
+        matches!(
+            held[..],
+            [Event::EstopHeld {
+                why: FollowEnd::Silent,
+                ..
+            }]
+        ),
+        "{held:?}"
+    );
     // And without a follow time the stop holds at once: the next command is ignored.
     let (mut b, log) = walking_then_estop(0.0);
     assert!(!b.estop_following());
