@@ -623,7 +623,8 @@ impl<B: Backend> JointBridge<B> {
 
     /// Emergency stop: [`Self::hold`] until [`Self::release_estop`], at once or, with
     /// [`BridgeConfig::estop_follow_s`], after following a commanded stop along the path
-    /// while the commands keep coming and moving (while nothing else holds the bridge).
+    /// while the commands keep coming and moving (while nothing else holds the bridge). A
+    /// second stop while it follows holds at once.
     pub fn estop(&mut self) {
         let following = self.config.estop_follow_s > 0.0
             && self.state == Lifecycle::Active

@@ -1204,6 +1204,23 @@ fn an_estop_follows_commands_that_come_every_other_tick() {
 }
 
 #[test]
+fn a_second_estop_while_following_holds_at_once() {
+    // The operator presses again: stop now. The next command is ignored, the joint stays.
+    let (mut b, log) = walking_then_estop(0.3);
+    b.command(t(51), &names(&["a"]), &[0.254]);
+    let _ = b.tick(t(51));
+    assert!(b.estop_following());
+    b.estop();
+    assert!(!b.estop_following());
+    assert_eq!(
+        b.command(t(52), &names(&["a"]), &[0.257]),
+        vec![Event::Ignored(Operator::Estop)]
+    );
+    let _ = b.tick(t(52));
+    assert!(close(written_at(&log, 52), 0.254));
+}
+
+#[test]
 fn a_torque_off_during_the_follow_ends_it() {
     // Another hold while following: the bridge holds for both, commands ignored.
     let (mut b, _log) = walking_then_estop(0.3);
