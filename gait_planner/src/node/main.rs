@@ -22,6 +22,10 @@
 //!   planned path within `pause_brake_time_s` (the plan's clock slows to a stop,
 //!   [`gait_planner::pause`]), `false` brings it back to speed from there. Commands
 //!   received while paused wait for the walk's time to move again.
+//! - subscribes `joint_bridge/holding` (std_msgs/msg/Bool, latched): while the joint bridge
+//!   holds (e-stop, torque off, inactive) the walk brakes to a pause the same way, and comes
+//!   back to speed when the hold ends; the bridge's e-stop follows that brake before it
+//!   holds (its `estop_follow_s`).
 //!
 //! Parameters: those of `config/gait.yaml` plus `robot_description_file` (URDF path; empty
 //! for the built-in robot) and `publish_odom_tf` (default true), both read at start. Bad commands are refused or clamped with a warning on `/rosout`
@@ -628,9 +632,7 @@ fn run() -> anyhow::Result<()> {
             while let Ok(Some((h, _))) = bridge_holding.take() {
                 if h.data != bridge_holds {
                     bridge_holds = h.data;
-                    // The walk brakes along its path (the bridge's e-stop follows it there
-                    // before it holds), and comes back to speed the same way; a pause the
-                    // operator asked for stays until the operator resumes.
+                    // A pause the operator asked for stays until the operator resumes.
                     if bridge_holds {
                         paused_for_bridge = clock.pause();
                     } else if paused_for_bridge {
