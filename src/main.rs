@@ -583,13 +583,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 let f = gait_planner::timing::fastest_timing(&model, &params)?;
                 let t = f.timing;
                 println!(
-                    "fastest timing: shift {:.3} s ({:?}), step {:.3} s ({:?}), crouch {:.3} s ({:?}); found in {:.2} s ({} checked planners)",
-                    t.shift_duration_s,
-                    f.bound[0],
-                    t.step_duration_s,
-                    f.bound[1],
-                    t.crouch_duration_s,
-                    f.bound[2],
+                    "fastest timing: {}; found in {:.2} s ({} checked planners)",
+                    f.describe(),
                     started.elapsed().as_secs_f64(),
                     f.checks
                 );
@@ -618,6 +613,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 params = f.params;
             }
             let mut planner = GaitPlanner::new(model, params)?;
+            if let Some(auto) = planner.auto_timing_summary() {
+                println!("durations left at 0 (auto), the fastest the checks allow: {auto}");
+            }
             if let Some(v) = twist {
                 plan::apply_twist(&mut planner, v)?;
             }

@@ -528,9 +528,14 @@ fn twist_turns_a_robot_with_hip_yaw() {
 /// The duration `--fastest` printed for `key` (shift, step, crouch) in its line
 /// "fastest timing: shift 0.72 s (Zmp), step 0.58 s (...), crouch 0.31 s (...); ...".
 fn fastest_secs(stdout: &str, key: &str) -> f64 {
+    secs_after(stdout, "fastest timing:", key)
+}
+
+/// The `KEY 0.780 s` duration on the line of `stdout` that starts with `prefix`.
+fn secs_after(stdout: &str, prefix: &str, key: &str) -> f64 {
     let line = stdout
         .lines()
-        .find(|l| l.starts_with("fastest timing:"))
+        .find(|l| l.starts_with(prefix))
         .unwrap_or_else(|| panic!("{stdout}"));
     line.split(&format!("{key} "))
         .nth(1)
@@ -599,9 +604,14 @@ fn fastest_plans_with_the_timing_it_prints() {
         "{stderr}"
     );
     let secs = |key: &str| fastest_secs(&stdout, key);
-    let line: &str = &stdout;
     let (shift, step, crouch) = (secs("shift"), secs("step"), secs("crouch"));
-    assert!(shift < 2.0 && step < 1.0 && crouch < 1.0, "{line}");
+    assert!(shift < 2.0 && step < 1.0 && crouch < 1.0, "{stdout}");
+    assert_phases_last(&csv, [shift, step, crouch], &stdout);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The phases of a 4-step plan's CSV last `[shift, step, crouch]` seconds.
+fn assert_phases_last(csv: &Csv, [shift, step, crouch]: [f64; 3], line: &str) {
     let phase = csv.col("phase");
     let ticks = |name: &str| csv.rows.iter().filter(|r| r[phase] == name).count();
     // Each phase's ticks are (start, end]; the crouch also has its t = 0 tick. 4 steps:
@@ -612,5 +622,43 @@ fn fastest_plans_with_the_timing_it_prints() {
     assert_eq!(ticks("center"), n(shift), "{line}");
     assert_eq!(ticks("step"), 3 * n(step), "{line}");
     assert_eq!(ticks("half_step"), n(step), "{line}");
+}
+
+/// Durations left at 0 in the parameter file are the fastest the checks allow: `biped plan`
+/// says so and plans with the durations `--fastest` finds from the defaults' 2 s / 1 s / 1 s;
+/// one set by hand beside them stays.
+#[test]
+fn durations_left_at_auto_plan_at_the_fastest_timing() {
+    let dir = tmp("auto-durations");
+    let (fast, _) = plan_with_output(&dir, &["--steps", "4", "--fastest"]);
+    let fast = String::from_utf8_lossy(&fast.stdout).into_owned();
+    let want = ["shift", "step", "crouch"].map(|k| fastest_secs(&fast, k));
+    let file = dir.join("auto.yaml");
+    for (hand_shift, text) in [(None, ""), (Some(1.5), "    shift_duration_s: 1.5\n")] {
+        std::fs::write(
+            &file,
+            format!(
+                "gait_planner:\n  ros__parameters:\n    step_duration_s: 0.0\n    crouch_duration_s: 0.0\n{}",
+                if text.is_empty() { "    shift_duration_s: 0.0\n" } else { text }
+            ),
+        )
+        .unwrap();
+        let (out, csv) =
+            plan_with_output(&dir, &["--steps", "4", "--params", file.to_str().unwrap()]);
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let prefix = "durations left at 0 (auto), the fastest the checks allow:";
+        let got = ["step", "crouch"].map(|k| secs_after(&stdout, prefix, k));
+        assert_eq!(got, [want[1], want[2]], "{stdout}\n{fast}");
+        let mut expect = want;
+        if let Some(s) = hand_shift {
+            // Set by hand: used, and not among the auto ones printed.
+            expect[0] = s;
+            let line = stdout.lines().find(|l| l.starts_with(prefix)).unwrap();
+            assert!(!line.contains("shift"), "{line}");
+        } else {
+            assert_eq!(secs_after(&stdout, prefix, "shift"), want[0], "{stdout}");
+        }
+        assert_phases_last(&csv, expect, &stdout);
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -31,6 +31,10 @@ pub mod auto {
     pub const TURN_STEP_RAD: f64 = 0.15;
     /// An auto step limit whose check walk fails is lowered by this many bisections.
     pub const BISECTIONS: u32 = 6;
+    /// The durations (s) the fastest-timing search scales from when a duration is left at 0:
+    /// shift, step, crouch. Slow enough that the reference walk passes the checks on any
+    /// robot whose walk passes at all (the defaults before #16).
+    pub const REFERENCE_TIMING_S: [f64; 3] = [2.0, 1.0, 1.0];
 }
 
 /// The parameters as written in the YAML file. Lengths left at 0 are derived from the robot
@@ -53,11 +57,12 @@ pub struct GaitParams {
     /// the other comes back parallel. Needs hip yaw joints (0 on robots without). 0 = auto
     /// (0.15 rad with hip yaw, lowered until the check walks pass).
     pub turn_step_rad: f64,
-    /// Duration of each swing (half and full steps) (s).
+    /// Duration of each swing (half and full steps) (s). 0 = auto: the fastest the checks
+    /// allow ([`GaitParams::with_auto_timing`]).
     pub step_duration_s: f64,
-    /// Duration of each CoM shift and of the final centring (s).
+    /// Duration of each CoM shift and of the final centring (s). 0 = auto.
     pub shift_duration_s: f64,
-    /// Duration of the initial crouch and of the optional final rise (s).
+    /// Duration of the initial crouch and of the optional final rise (s). 0 = auto.
     pub crouch_duration_s: f64,
     /// Peak height of the swing foot above the floor (m). 0 = auto.
     pub foot_lift_m: f64,
@@ -234,8 +239,72 @@ impl GaitParams {
             .unwrap_or(false)
     }
 
-    /// Checks every bound and fills in the values left at 0 from the robot.
+    /// True when a duration is left at 0 (auto): [`Self::with_auto_timing`] fills it in.
+    pub fn has_auto_timing(&self) -> bool {
+        [
+            self.shift_duration_s,
+            self.step_duration_s,
+            self.crouch_duration_s,
+        ]
+        .contains(&0.0)
+    }
+
+    /// These parameters with every duration left at 0 set to the fastest the planning checks
+    /// allow for `model` ([`crate::timing::fastest_timing`]: joint speed limits, the ZMP
+    /// margin, pausing anywhere within `pause_brake_time_s` or
+    /// [`crate::timing::PAUSE_BRAKE_BUDGET_S`], the servos' torque budget when given),
+    /// scaled from [`auto::REFERENCE_TIMING_S`] for the ones left at 0 and from the others
+    /// as set. The step limits the search verified (back, side, turn) are set explicitly, so
+    /// the faster timing never lowers an auto one. Durations set by hand stay as set (and
+    /// are checked with the rest by [`crate::GaitPlanner::new`]). With no duration at 0,
+    /// the parameters unchanged and no search. Costs one timing search (0.3-1.2 s, a
+    /// handful of checked planners: BENCHMARKS.md).
+    pub fn with_auto_timing(
+        &self,
+        model: &BipedModel,
+    ) -> Result<(GaitParams, Option<crate::timing::FastestTiming>), GaitError> {
+        if !self.has_auto_timing() {
+            return Ok((self.clone(), None));
+        }
+        let given = [
+            self.shift_duration_s,
+            self.step_duration_s,
+            self.crouch_duration_s,
+        ];
+        let pick = |i: usize, auto: f64| if given[i] == 0.0 { auto } else { given[i] };
+        let reference = GaitParams {
+            shift_duration_s: pick(0, auto::REFERENCE_TIMING_S[0]),
+            step_duration_s: pick(1, auto::REFERENCE_TIMING_S[1]),
+            crouch_duration_s: pick(2, auto::REFERENCE_TIMING_S[2]),
+            ..self.clone()
+        };
+        // Bounds first: a bad value is named as such, not as a failed search.
+        reference.resolve(model)?;
+        let found = crate::timing::fastest_timing(model, &reference).map_err(|e| {
+            GaitError::Request(format!(
+                "durations left at 0 (auto): no timing found from the reference shift {} s, step {} s, crouch {} s: {e}",
+                reference.shift_duration_s, reference.step_duration_s, reference.crouch_duration_s
+            ))
+        })?;
+        let t = found.timing;
+        let filled = GaitParams {
+            shift_duration_s: pick(0, t.shift_duration_s),
+            step_duration_s: pick(1, t.step_duration_s),
+            crouch_duration_s: pick(2, t.crouch_duration_s),
+            back_step_length_m: found.params.back_step_length_m,
+            side_step_m: found.params.side_step_m,
+            turn_step_rad: found.params.turn_step_rad,
+            ..self.clone()
+        };
+        Ok((filled, Some(found)))
+    }
+
+    /// Checks every bound and fills in the values left at 0 from the robot (durations by
+    /// the timing search of [`Self::with_auto_timing`]).
     pub fn resolve(&self, model: &BipedModel) -> Result<GaitParams, GaitError> {
+        if self.has_auto_timing() {
+            return self.with_auto_timing(model)?.0.resolve(model);
+        }
         let left = model.leg(Side::Left);
         let right = model.leg(Side::Right);
         let leg = (left.thigh_m + left.shin_m).min(right.thigh_m + right.shin_m);
@@ -287,9 +356,27 @@ impl GaitParams {
                 };
                 check("turn_step_rad", v, 0.0, 0.5, "rad (0 = auto)")?
             },
-            step_duration_s: check("step_duration_s", self.step_duration_s, 0.1, 60.0, "s")?,
-            shift_duration_s: check("shift_duration_s", self.shift_duration_s, 0.1, 60.0, "s")?,
-            crouch_duration_s: check("crouch_duration_s", self.crouch_duration_s, 0.1, 60.0, "s")?,
+            step_duration_s: check(
+                "step_duration_s",
+                self.step_duration_s,
+                0.1,
+                60.0,
+                "s (0 = auto)",
+            )?,
+            shift_duration_s: check(
+                "shift_duration_s",
+                self.shift_duration_s,
+                0.1,
+                60.0,
+                "s (0 = auto)",
+            )?,
+            crouch_duration_s: check(
+                "crouch_duration_s",
+                self.crouch_duration_s,
+                0.1,
+                60.0,
+                "s (0 = auto)",
+            )?,
             foot_lift_m: auto_or(
                 "foot_lift_m",
                 self.foot_lift_m,

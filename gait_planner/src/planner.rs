@@ -15,6 +15,7 @@ use crate::params::{GaitConfig, GaitParams};
 use crate::pause::{BrakeBound, PlannedCom, shortest_brake_s};
 use crate::phase::{PhaseKind, Support, WalkRequest};
 use crate::stride::{Stride, StrideCommand, Velocity};
+use crate::timing::FastestTiming;
 use crate::trajectory::{min_jerk, min_jerk_accel, swing_advance, swing_height};
 use crate::zmp::cart_table_zmp;
 
@@ -184,6 +185,9 @@ pub struct GaitPlanner {
     /// the phase and time of the tick that needs it): [`Self::settle_brake`] reads the
     /// settled strides' here instead of planning them again.
     brakes: std::cell::RefCell<Vec<(Stride, BrakeBound, PhaseKind, f64)>>,
+    /// Parameters with durations at 0 (auto) as given, and the timing search's answer for
+    /// them: [`Self::set_params`] with the same parameters does not search again.
+    auto_timing: Option<(GaitParams, GaitParams, FastestTiming)>,
 }
 
 /// Results of placing the pelvis for given feet.
@@ -206,11 +210,46 @@ impl GaitPlanner {
     /// backward step, and (with hip yaw) at the largest turn either way, in place, in an arc
     /// and with a side step (combinations at 1/√2 of each). A step limit left at 0 (auto)
     /// whose check fails is lowered until it passes; one set by hand is refused.
+    ///
+    /// Durations left at 0 (auto) are the fastest the checks allow
+    /// ([`GaitParams::with_auto_timing`]; [`Self::auto_timing`] tells what bound each).
     pub fn new(model: BipedModel, params: GaitParams) -> Result<Self, GaitError> {
-        let cfg = params.resolve(&model)?;
+        let (filled, found) = params.with_auto_timing(&model)?;
+        let cfg = filled.resolve(&model)?;
         let mut planner = Self::unchecked(model, cfg);
         planner.check_limits(&params)?;
+        planner.auto_timing = found.map(|f| (params, filled, f));
         Ok(planner)
+    }
+
+    /// The timing search behind durations left at 0 (auto), when any was: the durations
+    /// found and what bound each.
+    pub fn auto_timing(&self) -> Option<&FastestTiming> {
+        self.auto_timing.as_ref().map(|(_, _, f)| f)
+    }
+
+    /// The durations left at 0 (auto) and what bound each (`step 0.580 s (JointSpeed),
+    /// ...`), for a log or a summary; `None` when every duration was set.
+    pub fn auto_timing_summary(&self) -> Option<String> {
+        let (given, _, f) = self.auto_timing.as_ref()?;
+        Some(
+            f.describe_only(
+                [
+                    given.shift_duration_s,
+                    given.step_duration_s,
+                    given.crouch_duration_s,
+                ]
+                .map(|d| d == 0.0),
+            ),
+        )
+    }
+
+    /// Takes the timing search `other` made (a planner checked for the same parameters,
+    /// e.g. on another thread) so that [`Self::set_params`] with them does not search again.
+    pub fn remember_auto_timing(&mut self, other: &GaitPlanner) {
+        if other.auto_timing.is_some() {
+            self.auto_timing = other.auto_timing.clone();
+        }
     }
 
     /// The check walks of [`Self::new`], settling the auto step limits.
@@ -527,6 +566,7 @@ impl GaitPlanner {
             last_t_s: f64::NEG_INFINITY,
             poses: Vec::new(),
             brakes: Default::default(),
+            auto_timing: None,
         }
     }
 
@@ -550,7 +590,11 @@ impl GaitPlanner {
                 "parameters can change only between walks (the planner is walking)".into(),
             ));
         }
-        let cfg = params.resolve(&self.model)?;
+        let (filled, found) = match &self.auto_timing {
+            Some((given, filled, f)) if *given == params => (filled.clone(), Some(f.clone())),
+            _ => params.with_auto_timing(&self.model)?,
+        };
+        let cfg = filled.resolve(&self.model)?;
         if cfg.control_rate_hz != self.cfg.control_rate_hz {
             return Err(GaitError::Param {
                 key: "control_rate_hz",
@@ -573,6 +617,7 @@ impl GaitPlanner {
         }
         let mut fresh = Self::unchecked(self.model.clone(), cfg);
         fresh.check_limits(&params)?;
+        self.auto_timing = found.map(|f| (params, filled, f));
         self.next_swing = fresh.cfg.first_foot;
         self.stride = fresh.stride;
         self.cfg = fresh.cfg;

@@ -79,6 +79,27 @@ pub struct FastestTiming {
     pub params: GaitParams,
 }
 
+impl FastestTiming {
+    /// The durations and what binds each: `shift 0.780 s (Pause), step 0.580 s
+    /// (JointSpeed), crouch 0.310 s (CheckWalk)`.
+    pub fn describe(&self) -> String {
+        self.describe_only([true; 3])
+    }
+
+    /// [`Self::describe`] of the shift, step and crouch where `which` is true.
+    pub fn describe_only(&self, which: [bool; 3]) -> String {
+        let t = &self.timing;
+        let secs = [t.shift_duration_s, t.step_duration_s, t.crouch_duration_s];
+        ["shift", "step", "crouch"]
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| which[*i])
+            .map(|(i, name)| format!("{name} {:.3} s ({:?})", secs[i], self.bound[i]))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
 /// Smallest duration a parameter may have (s), as [`GaitParams::resolve`] bounds it.
 const MIN_DURATION_S: f64 = 0.1;
 /// Lengthening of a duration whose check walk still fails.

@@ -93,11 +93,30 @@ fn out_of_bounds_values_name_the_key_and_value() {
         ),
         (
             GaitParams {
-                step_duration_s: 0.0,
+                step_duration_s: 0.05,
                 ..GaitParams::default()
             },
             "step_duration_s",
-            0.0,
+            0.05,
+        ),
+        (
+            GaitParams {
+                step_duration_s: -1.0,
+                ..GaitParams::default()
+            },
+            "step_duration_s",
+            -1.0,
+        ),
+        // With durations at 0 (auto), a bad value is named before any timing search.
+        (
+            GaitParams {
+                shift_duration_s: 0.0,
+                step_duration_s: 0.0,
+                foot_lift_m: 1.0,
+                ..GaitParams::default()
+            },
+            "foot_lift_m",
+            1.0,
         ),
         (
             GaitParams {

@@ -139,3 +139,85 @@ fn a_servo_model_bounds_the_timing_by_torque() {
     );
     GaitPlanner::new(model, budget.params).expect("accepted");
 }
+
+fn auto_durations() -> GaitParams {
+    GaitParams {
+        shift_duration_s: 0.0,
+        step_duration_s: 0.0,
+        crouch_duration_s: 0.0,
+        ..GaitParams::default()
+    }
+}
+
+fn durations(p: &GaitParams) -> (f64, f64, f64) {
+    (p.shift_duration_s, p.step_duration_s, p.crouch_duration_s)
+}
+
+/// Durations left at 0 are the fastest timing of the same walk at the reference durations
+/// (2 s / 1 s / 1 s, the defaults): what `biped plan --fastest` prints, now used by the
+/// planner itself, with the step limits of the slow walk kept.
+#[test]
+fn durations_left_at_auto_are_the_fastest_timing() {
+    for model in [default_model(), biped6_model()] {
+        let planner = GaitPlanner::new(model.clone(), auto_durations()).unwrap();
+        let fastest = fastest_timing(&model, &GaitParams::default()).unwrap();
+        let c = planner.config();
+        assert_eq!(durations(c), durations(&fastest.params));
+        assert!(c.shift_duration_s < 2.0 && c.step_duration_s < 1.0, "{c:?}");
+        assert_eq!(planner.auto_timing(), Some(&fastest));
+        let slow = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+        let s = slow.config();
+        assert_eq!(
+            (c.back_step_length_m, c.side_step_m, c.turn_step_rad),
+            (s.back_step_length_m, s.side_step_m, s.turn_step_rad)
+        );
+        assert!(slow.auto_timing().is_none());
+        // `resolve` (what `biped check-robot` prints) gives the same durations.
+        let resolved = auto_durations().resolve(&model).unwrap();
+        assert_eq!(durations(&resolved), durations(c));
+    }
+}
+
+/// A duration set by hand stays as set beside auto ones, is the reference the others are
+/// scaled with, and is checked: too short, the planner refuses it by its phase.
+#[test]
+fn a_duration_set_by_hand_beside_auto_ones_stays_and_is_checked() {
+    let model = default_model();
+    let shift_by_hand = GaitParams {
+        shift_duration_s: 1.5,
+        ..auto_durations()
+    };
+    let planner = GaitPlanner::new(model.clone(), shift_by_hand.clone()).unwrap();
+    let c = planner.config();
+    assert_eq!(c.shift_duration_s, 1.5);
+    let all_auto = GaitPlanner::new(model.clone(), auto_durations()).unwrap();
+    assert_eq!(
+        (c.step_duration_s, c.crouch_duration_s),
+        (
+            all_auto.config().step_duration_s,
+            all_auto.config().crouch_duration_s
+        )
+    );
+    // 0.3 s shifts fail the ZMP margin as a reference walk (as above): refused, saying the
+    // durations were auto, and naming what failed.
+    let err = GaitPlanner::new(
+        model.clone(),
+        GaitParams {
+            shift_duration_s: 0.3,
+            ..auto_durations()
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("durations left at 0 (auto)") && err.contains("ZMP margin"),
+        "{err}"
+    );
+    // Between walks: the same parameters again, and back to fixed durations.
+    let mut planner = planner;
+    planner.set_params(shift_by_hand).unwrap();
+    assert_eq!(planner.config().shift_duration_s, 1.5);
+    planner.set_params(GaitParams::default()).unwrap();
+    assert_eq!(durations(planner.config()), (2.0, 1.0, 1.0));
+    assert!(planner.auto_timing().is_none());
+}

@@ -476,7 +476,7 @@ fn run() -> anyhow::Result<()> {
     // peer), applied by the loop between walks.
     let walking = Arc::new(AtomicBool::new(false));
     let shared = Arc::new(Mutex::new(params.clone()));
-    let (tx, rx) = std::sync::mpsc::channel::<GaitParams>();
+    let (tx, rx) = std::sync::mpsc::channel::<(GaitParams, GaitPlanner)>();
     let check = {
         let (walking, shared, model) = (walking.clone(), shared.clone(), model.clone());
         move |name: &str, value: &ParameterValue| -> Result<(), String> {
@@ -510,11 +510,12 @@ fn run() -> anyhow::Result<()> {
             );
             candidate = serde_norway::from_value(serde_norway::Value::Mapping(map))
                 .map_err(|e| format!("{name}: {e}"))?;
-            // The same check a walk start does, on a scratch planner.
-            // The check a walk start does (one check walk); the loop applies it between walks.
-            GaitPlanner::new(model.clone(), candidate.clone()).map_err(|e| e.to_string())?;
+            // The check a walk start does, on a scratch planner (with durations on auto, the
+            // timing search too, which the loop then reuses); applied between walks.
+            let scratch =
+                GaitPlanner::new(model.clone(), candidate.clone()).map_err(|e| e.to_string())?;
             *shared.lock().map_err(|e| e.to_string())? = candidate.clone();
-            tx.send(candidate).map_err(|e| e.to_string())
+            tx.send((candidate, scratch)).map_err(|e| e.to_string())
         }
     };
     let declared = declared(&params, &robot_file, &leg_map_file, odom_tf, stand_at_start)?;
@@ -547,6 +548,11 @@ fn run() -> anyhow::Result<()> {
             c.control_rate_hz
         ),
     );
+    if let Some(auto) = planner.auto_timing_summary() {
+        ros.info(&format!(
+            "durations left at 0 (auto), the fastest the checks allow: {auto}"
+        ));
+    }
 
     let mut commands = Commands {
         follower: VelocityFollower::new(),
@@ -583,7 +589,8 @@ fn run() -> anyhow::Result<()> {
                 Some(t) => t,
                 None => ros.node.time_now().into(),
             };
-            while let Ok(p) = rx.try_recv() {
+            while let Ok((p, checked)) = rx.try_recv() {
+                planner.remember_auto_timing(&checked);
                 match planner.set_params(p.clone()) {
                     Ok(()) => {
                         params = p;
