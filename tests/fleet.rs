@@ -273,6 +273,32 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
         v["set_after_walk"]
     );
     assert_eq!(v["param_after"]["double"], 0.02);
+
+    // step_duration_s set to 0 (auto) between walks: accepted, and the next walk (one step)
+    // swings for the fastest step duration of these parameters, shorter than the 1 s before.
+    assert_eq!(v["set_auto"]["successful"], true, "{}", v["set_auto"]);
+    assert_eq!(v["auto_walk_finished"], true);
+    let auto = GaitPlanner::new(
+        model.clone(),
+        GaitParams {
+            foot_lift_m: 0.02,
+            step_duration_s: 0.0,
+            ..GaitParams::default()
+        },
+    )
+    .unwrap();
+    let swing_s = auto.config().step_duration_s;
+    assert!(swing_s < 1.0, "{swing_s}");
+    let half_step_ticks = phases[v["auto_walk_from"].as_u64().unwrap() as usize..]
+        .iter()
+        .filter(|p| p["phase"] == "half_step")
+        .count();
+    assert_eq!(
+        half_step_ticks,
+        (swing_s * 100.0).round() as usize,
+        "the first half step of the walk after step_duration_s := 0 (auto: {swing_s} s)"
+    );
+    assert!(rosout_has(&v, "gait_planner", &["parameters changed"]));
     assert_eq!(v["set_invalid"]["successful"], false);
     assert!(
         v["set_invalid"]["reason"]

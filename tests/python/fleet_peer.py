@@ -268,6 +268,19 @@ def scenario_walk(bin_dir, params):
     out["set_after_walk"] = peer.set_double("gait_planner", "foot_lift_m", 0.02)
     out["set_invalid"] = peer.set_double("gait_planner", "control_rate_hz", 5000.0)
     out["param_after"] = peer.get_param("gait_planner", "foot_lift_m")
+    # Swings left at 0 (auto): the node searches the fastest timing, and the next walk (one
+    # step) swings that long.
+    out["set_auto"] = peer.set_double("gait_planner", "step_duration_s", 0.0)
+    peer.spin(0.5)
+    n0 = len(peer.phases)
+    peer.walk(1)
+
+    def auto_walk_done():
+        later = [p["phase"] for p in peer.phases[n0:]]
+        return any(ph != "idle" for ph in later) and later[-1] == "idle"
+
+    out["auto_walk_finished"] = peer.spin(30.0, auto_walk_done)
+    out["auto_walk_from"] = n0
     peer.spin(0.3)
     out.update(phases=peer.phases, commands=peer.commands, rosout=peer.rosout,
                states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None,
