@@ -247,6 +247,18 @@ enum Command {
         /// answer, not a physics one: `biped walk` tells whether the robot keeps up.
         #[arg(long)]
         fastest: bool,
+        /// Plan the fastest walk the checks allow: the step lengths and hip heights left at 0
+        /// in the parameter file are searched (0.25-0.45 x leg, hip pitch 0.65-0.85 x leg
+        /// above the ankle), each at its fastest timing as `--fastest` finds it (the
+        /// durations are searched whatever the file says); prints every walk tried and plans
+        /// the fastest. Foot lift, margins and brake time stay the file's. A planning
+        /// answer, as `--fastest`'s.
+        #[arg(long, conflicts_with = "fastest")]
+        fastest_walk: bool,
+        /// With `--fastest` or `--fastest-walk`: write the parameters found as a ROS 2
+        /// parameter file, for `biped walk --params` or the node's `--params-file`.
+        #[arg(long, value_name = "YAML")]
+        write_params: Option<PathBuf>,
     },
 }
 
@@ -575,9 +587,60 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             plots,
             no_plots,
             fastest,
+            fastest_walk,
+            write_params,
         } => {
             let model = load_model(&robot)?;
             let mut params = load_params(&robot)?;
+            if write_params.is_some() && !fastest && !fastest_walk {
+                anyhow::bail!(
+                    "--write-params writes what --fastest or --fastest-walk found; give one of them"
+                );
+            }
+            if fastest_walk {
+                let started = std::time::Instant::now();
+                let w = gait_planner::timing::fastest_walk(
+                    &model,
+                    &GaitParams {
+                        shift_duration_s: 0.0,
+                        step_duration_s: 0.0,
+                        crouch_duration_s: 0.0,
+                        ..params.clone()
+                    },
+                )?;
+                for t in &w.trials {
+                    match &t.outcome {
+                        Ok((speed, d)) => println!(
+                            "  step {:.3} m, hip height {:.3} m: {speed:.4} m/s planned (shift {:.3} s, step {:.3} s, crouch {:.3} s)",
+                            t.step_length_m,
+                            t.hip_height_m,
+                            d.shift_duration_s,
+                            d.step_duration_s,
+                            d.crouch_duration_s
+                        ),
+                        Err(e) => println!(
+                            "  step {:.3} m, hip height {:.3} m: refused: {e}",
+                            t.step_length_m, t.hip_height_m
+                        ),
+                    }
+                }
+                let p = &w.params;
+                println!(
+                    "fastest walk: step {:.3} m, hip height {:.3} m, shift {:.3} s, step {:.3} s, crouch {:.3} s: {:.4} m/s planned; {} walks tried in {:.1} s",
+                    p.step_length_m,
+                    p.hip_height_m,
+                    p.shift_duration_s,
+                    p.step_duration_s,
+                    p.crouch_duration_s,
+                    w.speed_m_s,
+                    w.trials.len(),
+                    started.elapsed().as_secs_f64()
+                );
+                eprintln!(
+                    "note: the fastest walk the planning checks allow; `biped walk --params` tells whether the robot keeps up (BENCHMARKS.md, \"Walking faster\"). Not for hardware before that."
+                );
+                params = w.params;
+            }
             if fastest {
                 let started = std::time::Instant::now();
                 let f = gait_planner::timing::fastest_timing(&model, &params)?;
@@ -612,6 +675,23 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 );
                 params = f.params;
             }
+            let params_file = match &write_params {
+                Some(file) => Some((
+                    file,
+                    format!(
+                        "# Written by `biped plan {}` for {}: a planning answer; try it in simulation first\n# (`biped walk --params {}`).\n{}",
+                        if fastest_walk {
+                            "--fastest-walk"
+                        } else {
+                            "--fastest"
+                        },
+                        model.robot().name(),
+                        file.display(),
+                        params.to_ros_yaml_string()?
+                    ),
+                )),
+                None => None,
+            };
             let mut planner = GaitPlanner::new(model, params)?;
             if let Some(auto) = planner.auto_timing_summary() {
                 println!("durations left at 0 (auto), the fastest the checks allow: {auto}");
@@ -621,6 +701,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             }
             let samples = planner.plan(WalkRequest::Steps(steps))?;
             plan::write_csv_file(&csv, planner.model().robot(), &samples)?;
+            if let Some((file, text)) = params_file {
+                std::fs::write(file, text)
+                    .with_context(|| format!("writing {}", file.display()))?;
+                println!("wrote {}", file.display());
+            }
             let mut summary = plan::PlanSummary::of(&samples);
             summary.files.push(csv.clone());
             if !no_plots {

@@ -662,3 +662,66 @@ fn durations_left_at_auto_plan_at_the_fastest_timing() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--fastest-walk --write-params FILE`: prints every walk tried and the fastest, plans it,
+/// and writes a parameter file that plans the same walk again (the same CSV); without
+/// `--fastest`/`--fastest-walk` there is nothing to write, and it is refused.
+#[test]
+fn the_fastest_walk_is_written_as_a_parameter_file_that_plans_it_again() {
+    let dir = tmp("fastest-walk");
+    let file = dir.join("fastest_walk.yaml");
+    let (out, csv) = plan_with_output(
+        &dir,
+        &[
+            "--steps",
+            "4",
+            "--fastest-walk",
+            "--write-params",
+            file.to_str().unwrap(),
+        ],
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let tried = stdout.lines().filter(|l| l.starts_with("  step ")).count();
+    // The 5 x 3 grid, and 3 bisections of the step when the next longer one was refused.
+    assert!((15..=18).contains(&tried), "{stdout}");
+    let best = stdout
+        .lines()
+        .find(|l| l.starts_with("fastest walk: "))
+        .unwrap_or_else(|| panic!("{stdout}"));
+    // The best line's speed is the largest of the walks accepted.
+    let speed = |l: &str| -> f64 {
+        l.split(" m/s planned")
+            .next()
+            .unwrap()
+            .rsplit(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let top = stdout
+        .lines()
+        .filter(|l| l.starts_with("  step ") && l.contains("m/s planned"))
+        .map(speed)
+        .fold(0.0, f64::max);
+    assert!((speed(best) - top).abs() < 1e-4, "{stdout}");
+    let again = plan(&dir, &["--steps", "4", "--params", file.to_str().unwrap()]);
+    assert_eq!(again.rows, csv.rows, "the written file plans the same walk");
+    let text = std::fs::read_to_string(&file).unwrap();
+    assert!(
+        text.contains("step_length_m: ")
+            && text.starts_with("# Written by `biped plan --fastest-walk` for biped20"),
+        "{text}"
+    );
+    fails_naming(
+        &[
+            "plan",
+            "--write-params",
+            file.to_str().unwrap(),
+            "--csv",
+            dir.join("x.csv").to_str().unwrap(),
+        ],
+        &["--write-params", "--fastest"],
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -142,6 +142,22 @@ impl GaitParams {
     }
 }
 
+/// The leg length the lengths left at 0 scale with (m): thigh + shin (L1 + L2), the shorter
+/// leg's.
+pub fn leg_length_m(model: &BipedModel) -> f64 {
+    Side::BOTH
+        .iter()
+        .map(|&s| model.leg(s).thigh_m + model.leg(s).shin_m)
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The hip height (hip roll axis above the floor, m) with the hip pitch axis `drop_per_leg`
+/// leg lengths above the ankle point: ankle-to-sole + hip offset + `drop_per_leg` x leg.
+pub fn hip_height_for(model: &BipedModel, drop_per_leg: f64) -> f64 {
+    let left = model.leg(Side::Left);
+    left.ankle_to_sole_m + left.hip_roll_to_pitch_m + drop_per_leg * leg_length_m(model)
+}
+
 fn check(key: &'static str, value: f64, lo: f64, hi: f64, unit: &str) -> Result<f64, GaitError> {
     if value.is_finite() && value >= lo && value <= hi {
         Ok(value)
@@ -232,6 +248,23 @@ impl GaitParams {
             .map_err(|e| err(format!("gait_planner.ros__parameters: {e}")))
     }
 
+    /// These parameters as a ROS 2 parameter file (`gait_planner: ros__parameters: ...`,
+    /// every key), which [`Self::from_ros_yaml_str`] reads back to the same values.
+    pub fn to_ros_yaml_string(&self) -> Result<String, GaitError> {
+        let err = |e: serde_norway::Error| GaitError::ParamFile {
+            path: None,
+            message: e.to_string(),
+        };
+        let mut section = serde_norway::Mapping::new();
+        section.insert(
+            "ros__parameters".into(),
+            serde_norway::to_value(self).map_err(err)?,
+        );
+        let mut top = serde_norway::Mapping::new();
+        top.insert("gait_planner".into(), serde_norway::Value::Mapping(section));
+        serde_norway::to_string(&top).map_err(err)
+    }
+
     fn is_known(name: &str) -> bool {
         serde_norway::to_value(Self::default())
             .ok()
@@ -307,15 +340,15 @@ impl GaitParams {
         }
         let left = model.leg(Side::Left);
         let right = model.leg(Side::Right);
-        let leg = (left.thigh_m + left.shin_m).min(right.thigh_m + right.shin_m);
+        let leg = leg_length_m(model);
         let sole_width = left
             .sole
             .width_m()
             .min(left.sole.length_m())
             .min(right.sole.width_m())
             .min(right.sole.length_m());
-        let hip_lo = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + 0.5 * leg;
-        let hip_hi = left.ankle_to_sole_m + left.hip_roll_to_pitch_m + leg;
+        let hip_lo = hip_height_for(model, 0.5);
+        let hip_hi = hip_height_for(model, 1.0);
         let step_length_m = auto_or(
             "step_length_m",
             self.step_length_m,
@@ -387,7 +420,7 @@ impl GaitParams {
             hip_height_m: auto_or(
                 "hip_height_m",
                 self.hip_height_m,
-                left.ankle_to_sole_m + left.hip_roll_to_pitch_m + auto::HIP_DROP_PER_LEG * leg,
+                hip_height_for(model, auto::HIP_DROP_PER_LEG),
                 hip_lo,
                 hip_hi,
             )?,

@@ -474,6 +474,169 @@ pub fn fastest_timing_with_brake(
     })
 }
 
+/// Step lengths [`fastest_walk`] tries when `step_length_m` is left at 0, as fractions of
+/// the leg (thigh + shin): from the auto default (0.25) to past where the hip pitch joints of
+/// small robots run out of range.
+pub const WALK_STEP_PER_LEG: [f64; 5] = [0.25, 0.30, 0.35, 0.40, 0.45];
+/// Hip heights [`fastest_walk`] tries when `hip_height_m` is left at 0: the hip pitch axis
+/// this many legs above the ankle point (0.85 the auto default; lower hips, straighter
+/// swings, more knee torque).
+pub const WALK_HIP_DROP_PER_LEG: [f64; 3] = [0.85, 0.75, 0.65];
+
+/// Bisections of the step length between the fastest walk of the grid and the next longer
+/// step, refused, at the same hip height (to 1/8 of the grid's spacing, in whole mm).
+pub const WALK_STEP_BISECTIONS: u32 = 3;
+
+/// One walk [`fastest_walk`] tried.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WalkTrial {
+    /// Its step length (m).
+    pub step_length_m: f64,
+    /// Its hip height (m).
+    pub hip_height_m: f64,
+    /// Its planned speed (step length / (shift + step duration), m/s) and durations, or why
+    /// the planner refused it.
+    pub outcome: Result<(f64, Timing), String>,
+}
+
+/// The fastest walk the planning checks allow, and every walk tried.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FastestWalk {
+    /// The parameters of the fastest: the given ones with its step length, hip height and
+    /// durations set.
+    pub params: GaitParams,
+    /// Its planned speed over a long walk: step length / (shift + step duration) (m/s).
+    pub speed_m_s: f64,
+    /// Every walk tried, in order.
+    pub trials: Vec<WalkTrial>,
+}
+
+/// The fastest walk of `model` the planning checks allow: for each step length and hip
+/// height left at 0 in `params` ([`WALK_STEP_PER_LEG`] x [`WALK_HIP_DROP_PER_LEG`], in whole
+/// millimetres; a value
+/// set stays the only one tried), the durations left at 0 found by [`fastest_timing`] (set
+/// ones stay), kept if the planner accepts the walk; the fastest by planned speed wins
+/// (ties: the higher hip, then the shorter step). When the next longer step at the winner's
+/// hip height was refused, [`WALK_STEP_BISECTIONS`] bisections between the two find the
+/// longest step accepted there (each a trial; the fastest of all wins). Foot lift, margins and brake time are
+/// those of `params`: the clearance and the stability asked for. A planning answer, as
+/// [`fastest_timing`]'s: whether the robot keeps up is a physics question. Costs one
+/// timing search per walk tried (18 at most).
+pub fn fastest_walk(model: &BipedModel, params: &GaitParams) -> Result<FastestWalk, GaitError> {
+    use crate::params::{hip_height_for, leg_length_m};
+    // Lengths tried in whole millimetres: what a parameter file says and a user reads.
+    let mm = |v: f64| (v * 1000.0).round() / 1000.0;
+    let steps: Vec<f64> = if params.step_length_m == 0.0 {
+        let leg = leg_length_m(model);
+        WALK_STEP_PER_LEG.iter().map(|r| mm(r * leg)).collect()
+    } else {
+        vec![params.step_length_m]
+    };
+    let hips: Vec<f64> = if params.hip_height_m == 0.0 {
+        WALK_HIP_DROP_PER_LEG
+            .iter()
+            .map(|&r| mm(hip_height_for(model, r)))
+            .collect()
+    } else {
+        vec![params.hip_height_m]
+    };
+    let mut trials: Vec<WalkTrial> = Vec::new();
+    let mut best: Option<(f64, GaitParams)> = None;
+    // Tries one walk; keeps it if fastest; true if accepted.
+    let mut try_walk = |trials: &mut Vec<WalkTrial>, step_length_m: f64, hip_height_m: f64| {
+        let trial = GaitParams {
+            step_length_m,
+            hip_height_m,
+            ..params.clone()
+        };
+        let outcome = GaitPlanner::new(model.clone(), trial).map(|planner| {
+            let c = planner.config();
+            let speed = c.step_length_m / c.step_period_s();
+            if best.as_ref().is_none_or(|(v, _)| speed > *v) {
+                best = Some((
+                    speed,
+                    GaitParams {
+                        step_length_m,
+                        hip_height_m,
+                        shift_duration_s: c.shift_duration_s,
+                        step_duration_s: c.step_duration_s,
+                        crouch_duration_s: c.crouch_duration_s,
+                        ..params.clone()
+                    },
+                ));
+            }
+            let timing = Timing {
+                shift_duration_s: c.shift_duration_s,
+                step_duration_s: c.step_duration_s,
+                crouch_duration_s: c.crouch_duration_s,
+            };
+            (speed, timing)
+        });
+        let accepted = outcome.is_ok();
+        trials.push(WalkTrial {
+            step_length_m,
+            hip_height_m,
+            outcome: outcome.map_err(|e| e.to_string()),
+        });
+        accepted
+    };
+    // The grid, remembering where each winner so far came from.
+    let mut grid_best: Option<(f64, usize, f64)> = None;
+    for &hip_height_m in &hips {
+        for (i, &step_length_m) in steps.iter().enumerate() {
+            try_walk(&mut trials, step_length_m, hip_height_m);
+            if let Some(Ok((v, _))) = trials.last().map(|t| t.outcome.as_ref())
+                && grid_best.is_none_or(|(b, _, _)| *v > b)
+            {
+                grid_best = Some((*v, i, hip_height_m));
+            }
+        }
+    }
+    // The fastest is mostly the longest step its hip height allows: when the next longer
+    // step of the grid was refused, bisect between them at that hip height.
+    if let Some((_, i, hip)) = grid_best {
+        let refused_next = steps.get(i + 1).is_some_and(|&next| {
+            trials
+                .iter()
+                .any(|t| t.step_length_m == next && t.hip_height_m == hip && t.outcome.is_err())
+        });
+        if refused_next {
+            let (mut lo, mut hi) = (steps[i], steps[i + 1]);
+            for _ in 0..WALK_STEP_BISECTIONS {
+                let mid = mm((lo + hi) / 2.0);
+                if mid <= lo || mid >= hi {
+                    break;
+                }
+                if try_walk(&mut trials, mid, hip) {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+        }
+    }
+    match best {
+        Some((speed_m_s, params)) => Ok(FastestWalk {
+            params,
+            speed_m_s,
+            trials,
+        }),
+        None => Err(GaitError::Request(format!(
+            "no walk passes the checks: {}",
+            trials
+                .iter()
+                .map(|t| format!(
+                    "step {:.3} m, hip {:.3} m: {}",
+                    t.step_length_m,
+                    t.hip_height_m,
+                    t.outcome.as_ref().err().map_or("", |e| e.as_str())
+                ))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ))),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -174,3 +174,22 @@ fn out_of_bounds_values_name_the_key_and_value() {
         "{msg}"
     );
 }
+
+/// A parameter file written from parameters reads back to the same parameters.
+#[test]
+fn written_parameters_read_back_the_same() {
+    let p = GaitParams {
+        step_length_m: 0.081,
+        hip_height_m: 0.165,
+        shift_duration_s: 0.72,
+        first_foot: Side::Right,
+        rise_at_end: true,
+        ..GaitParams::default()
+    };
+    let text = p.to_ros_yaml_string().unwrap();
+    assert!(
+        text.starts_with("gait_planner:\n  ros__parameters:\n"),
+        "{text}"
+    );
+    assert_eq!(GaitParams::from_ros_yaml_str(&text).unwrap(), p);
+}

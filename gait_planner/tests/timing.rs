@@ -221,3 +221,71 @@ fn a_duration_set_by_hand_beside_auto_ones_stays_and_is_checked() {
     assert_eq!(durations(planner.config()), (2.0, 1.0, 1.0));
     assert!(planner.auto_timing().is_none());
 }
+
+/// The fastest walk: every step length and hip height of the grid tried (15), the winner
+/// the fastest of those the planner accepted, faster than the auto step length's fastest
+/// timing, accepted itself; a step length set by hand is the only one tried.
+#[test]
+fn the_fastest_walk_is_the_fastest_accepted_trial() {
+    use gait_planner::timing::{
+        WALK_HIP_DROP_PER_LEG, WALK_STEP_BISECTIONS, WALK_STEP_PER_LEG, fastest_walk,
+    };
+    let model = default_model();
+    let w = fastest_walk(&model, &auto_durations()).unwrap();
+    let grid = WALK_STEP_PER_LEG.len() * WALK_HIP_DROP_PER_LEG.len();
+    let n = w.trials.len();
+    assert!(
+        (grid..=grid + WALK_STEP_BISECTIONS as usize).contains(&n),
+        "{n}"
+    );
+    // Lengths in whole millimetres, as a parameter file would say them.
+    for t in &w.trials {
+        for v in [t.step_length_m, t.hip_height_m] {
+            assert!(((v * 1000.0).round() - v * 1000.0).abs() < 1e-9, "{v}");
+        }
+    }
+    let accepted: Vec<f64> = w
+        .trials
+        .iter()
+        .filter_map(|t| t.outcome.as_ref().ok().map(|(v, _)| *v))
+        .collect();
+    assert!(
+        accepted.len() >= 2 && accepted.len() < w.trials.len(),
+        "{w:?}"
+    );
+    let top = accepted.iter().cloned().fold(0.0, f64::max);
+    assert_eq!(w.speed_m_s, top);
+    // The default robot's leg is 0.18 m: the auto walk steps 0.045 m on 0.183 m hips.
+    let plain = GaitPlanner::new(model.clone(), auto_durations()).unwrap();
+    let c = plain.config();
+    assert!((c.step_length_m - 0.045).abs() < 1e-12, "{c:?}");
+    assert!(
+        w.speed_m_s > 1.2 * c.step_length_m / c.step_period_s(),
+        "{} vs {}",
+        w.speed_m_s,
+        c.step_length_m / c.step_period_s()
+    );
+    let p = &w.params;
+    let walk = GaitPlanner::new(model.clone(), p.clone()).expect("the winner is accepted");
+    assert_eq!(walk.config().step_length_m, p.step_length_m);
+    assert!((p.step_length_m / (p.shift_duration_s + p.step_duration_s) - top).abs() < 1e-12);
+    // The refused ones say why.
+    assert!(
+        w.trials
+            .iter()
+            .filter_map(|t| t.outcome.as_ref().err())
+            .all(|e| e.contains("refused")),
+        "{w:?}"
+    );
+    // Step length set: only the hip heights are searched.
+    let set = fastest_walk(
+        &model,
+        &GaitParams {
+            step_length_m: 0.05,
+            ..auto_durations()
+        },
+    )
+    .unwrap();
+    assert_eq!(set.trials.len(), WALK_HIP_DROP_PER_LEG.len());
+    assert!(set.trials.iter().all(|t| t.step_length_m == 0.05));
+}
