@@ -865,7 +865,7 @@ fn an_rclpy_operator_pauses_and_resumes_the_walk_through_the_planner_service() {
 }
 
 /// The joint bridge as a managed node, from an rclpy lifecycle client (the services
-/// `ros2 lifecycle get/list/set` call): mid-walk, deactivate holds the joints while the walk
+/// `ros2 lifecycle get/list/set` call): mid-walk, deactivate brakes the walk along its path and holds the joints while the walk
 /// goes on commanding, a transition not available is refused, activate by label moves them
 /// again, shutdown ends the node by itself with the torque off; each transition is
 /// published on `~/transition_event`. A bridge started with `autostart:=false` waits
@@ -936,12 +936,13 @@ fn an_rclpy_lifecycle_client_deactivates_activates_and_shuts_down_the_joint_brid
     ]
     .map(|(a, b, c)| (a.to_owned(), b.to_owned(), c.to_owned()));
     assert_eq!(events, want);
-    // Inactive: held from the answer plus the braking time and a few bridge periods until
-    // the activation, though the walk goes on commanding.
+    // Inactive: the walk braked along its path (the bridge follows the commands to rest,
+    // within estop_follow_s = 0.4 s), then held until the activation, though the walk goes
+    // on commanding.
     let states = v["states"].as_array().unwrap();
     let (pos, t) = (state_positions, state_t);
     let (held_from, activate_t) = (
-        v["deactivate_answered_t"].as_f64().unwrap() + 0.15,
+        v["deactivate_answered_t"].as_f64().unwrap() + 0.5,
         v["activate_t"].as_f64().unwrap(),
     );
     let held: Vec<&Value> = states
@@ -974,6 +975,14 @@ fn an_rclpy_lifecycle_client_deactivates_activates_and_shuts_down_the_joint_brid
         &v,
         "joint_bridge",
         &["lifecycle: active -> inactive (deactivate)"]
+    ));
+    assert!(rosout_has(
+        &v,
+        "joint_bridge",
+        &[
+            "inactive: holding after following the commands for",
+            "came to rest"
+        ]
     ));
     assert!(rosout_has(
         &v,

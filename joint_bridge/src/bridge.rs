@@ -91,7 +91,8 @@ pub struct BridgeConfig {
     /// commands are at rest (a new command the same as the one before) or stop coming (none
     /// for [`FOLLOW_SILENCE_S`]): a dead or silent planner gets the immediate hold, only
     /// that much later. 0: hold at once (each joint brakes at its acceleration limit), which
-    /// can throw a fast walk over.
+    /// can throw a fast walk over. A lifecycle deactivate ([`JointBridge::stop_along`] with
+    /// [`Operator::Inactive`]) follows the same way.
     pub estop_follow_s: f64,
 }
 
@@ -133,9 +134,12 @@ struct Ramp {
 /// hardware) does not end the follow, and a planner that has died ends it within 50 ms.
 pub const FOLLOW_SILENCE_S: f64 = 0.05;
 
-/// An emergency stop still following the commands ([`BridgeConfig::estop_follow_s`]).
+/// An emergency stop (or a deactivate) still following the commands
+/// ([`BridgeConfig::estop_follow_s`]).
 #[derive(Debug, Clone)]
 struct Follow {
+    /// Who stops: the hold it becomes.
+    by: Operator,
     /// When it began (the last tick before the stop) (s).
     from_s: f64,
     /// When it holds at the latest (s).
@@ -210,8 +214,10 @@ pub enum Event {
     BackendNotice(String),
     /// Commands are ignored while an operator holds the bridge (said once per hold).
     Ignored(Operator),
-    /// An emergency stop that followed the commands now holds.
-    EstopHeld {
+    /// An emergency stop (or a deactivate) that followed the commands now holds.
+    FollowHeld {
+        /// Who stopped: [`Operator::Estop`] or [`Operator::Inactive`].
+        by: Operator,
         /// How long it followed them (s).
         followed_s: f64,
         /// Why it stopped following.
@@ -281,15 +287,24 @@ impl fmt::Display for Event {
                 "backend configured and active again; ramping from the measured pose"
             ),
             Event::BackendNotice(n) => write!(f, "{n}"),
-            Event::EstopHeld { followed_s, why } => {
+            Event::FollowHeld {
+                by,
+                followed_s,
+                why,
+            } => {
                 let why = match why {
                     FollowEnd::AtRest => "the commands came to rest",
                     FollowEnd::Silent => "the commands stopped coming",
                     FollowEnd::TimeUp => "estop_follow_s ran out, the commands still moving",
                 };
+                let who = match by {
+                    Operator::Estop => "emergency stop",
+                    Operator::Inactive => "inactive",
+                    Operator::TorqueOff => "torque off",
+                };
                 write!(
                     f,
-                    "emergency stop: holding after following the commands for {followed_s:.2} s ({why})"
+                    "{who}: holding after following the commands for {followed_s:.2} s ({why})"
                 )
             }
             Event::Ignored(Operator::Estop) => write!(
@@ -354,7 +369,7 @@ pub struct JointBridge<B: Backend> {
     /// What was last sent: the output, compensated and clamped.
     written: Vec<f64>,
     ramp: Option<Ramp>,
-    /// An emergency stop following the commands to rest, while it does.
+    /// An emergency stop (or a deactivate) following the commands to rest, while it does.
     follow: Option<Follow>,
     /// Current retry delay and when the next retry is due.
     retry_delay_s: f64,
@@ -609,7 +624,7 @@ impl<B: Backend> JointBridge<B> {
         if !self.holds.remove(&why) {
             return false;
         }
-        if why == Operator::Estop {
+        if self.follow.as_ref().is_some_and(|f| f.by == why) {
             self.follow = None;
         }
         self.said_ignored = false;
@@ -626,6 +641,15 @@ impl<B: Backend> JointBridge<B> {
     /// while the commands keep coming and moving (while nothing else holds the bridge). A
     /// second stop while it follows holds at once.
     pub fn estop(&mut self) {
+        self.stop_along(Operator::Estop);
+    }
+
+    /// [`Self::hold`] for `by`, at once or, with [`BridgeConfig::estop_follow_s`], after
+    /// following a commanded stop along the path as [`Self::estop`] does (while nothing
+    /// else holds the bridge; otherwise at once). The lifecycle's deactivate uses it with
+    /// [`Operator::Inactive`]: a walk deactivated mid-step is braked along its path, not
+    /// frozen under a moving body.
+    pub fn stop_along(&mut self, by: Operator) {
         let following = self.config.estop_follow_s > 0.0
             && self.state == Lifecycle::Active
             && self.holds.is_empty()
@@ -636,21 +660,28 @@ impl<B: Backend> JointBridge<B> {
                 // The first command after the stop is a move (NaN matches nothing): the
                 // node ticks right after a stop it serves, with the tick's command taken.
                 self.follow = Some(Follow {
+                    by,
                     from_s: t_s,
                     until_s: t_s + self.config.estop_follow_s,
                     commanded: false,
                     last_target: vec![f64::NAN; self.target.len()],
                 });
-                self.holds.insert(Operator::Estop);
+                self.holds.insert(by);
                 self.said_ignored = false;
             }
-            _ => self.hold(Operator::Estop),
+            _ => self.hold(by),
         }
     }
 
     /// True while an emergency stop still follows the commands to rest.
     pub fn estop_following(&self) -> bool {
-        self.follow.is_some()
+        self.following() == Some(Operator::Estop)
+    }
+
+    /// Who stops along the path ([`Self::stop_along`]) while the commands are still
+    /// followed to rest.
+    pub fn following(&self) -> Option<Operator> {
+        self.follow.as_ref().map(|f| f.by)
     }
 
     /// Releases an emergency stop. Returns false if none was on.
@@ -793,11 +824,13 @@ impl<B: Backend> JointBridge<B> {
                 None
             };
             if let Some(why) = end {
-                events.push(Event::EstopHeld {
+                let by = f.by;
+                events.push(Event::FollowHeld {
+                    by,
                     followed_s: t_s - f.from_s,
                     why,
                 });
-                self.hold(Operator::Estop);
+                self.hold(by);
             } else if f.commanded {
                 f.commanded = false;
                 f.last_target.copy_from_slice(&self.target);

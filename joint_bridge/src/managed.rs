@@ -156,7 +156,8 @@ pub fn apply<B: Backend>(
         "activate" => {
             bridge.release(Operator::Inactive);
         }
-        "deactivate" => bridge.hold(Operator::Inactive),
+        // Braked along the walk's path like an e-stop (`estop_follow_s`), then held.
+        "deactivate" => bridge.stop_along(Operator::Inactive),
         "cleanup" => bridge.stop().map_err(failed)?,
         _ => {
             // shutdown: brake to a hold, then torque off.

@@ -1051,6 +1051,14 @@ fn timeout_action_parses_hold_and_limp_and_names_a_bad_value() {
 /// One joint commanded along a ramp of 5 mrad per tick (0.5 rad/s) up to tick 50 (0.25 rad),
 /// then an emergency stop with `follow_s`: the bridge and its recording.
 fn walking_then_estop(follow_s: f64) -> (JointBridge<Recorder>, Arc<Mutex<Vec<Call>>>) {
+    walking_then(follow_s, JointBridge::estop)
+}
+
+/// [`walking_then_estop`] with another stop.
+fn walking_then(
+    follow_s: f64,
+    stop: impl FnOnce(&mut JointBridge<Recorder>),
+) -> (JointBridge<Recorder>, Arc<Mutex<Vec<Call>>>) {
     let (rec, log) = Recorder::new();
     let config = BridgeConfig {
         estop_follow_s: follow_s,
@@ -1062,7 +1070,7 @@ fn walking_then_estop(follow_s: f64) -> (JointBridge<Recorder>, Arc<Mutex<Vec<Ca
         bridge.command(t(i), &names(&["a"]), &[0.005 * f64::from(i)]);
         let _ = bridge.tick(t(i));
     }
-    bridge.estop();
+    stop(&mut bridge);
     (bridge, log)
 }
 
@@ -1091,7 +1099,13 @@ fn an_estop_follows_the_commands_to_rest_then_holds_and_ignores_them() {
     }
     // Said once, at tick 55: followed from tick 50's time for 0.05 s, the commands at rest.
     assert_eq!(held.len(), 1, "{held:?}");
-    let (i, Event::EstopHeld { followed_s, why }) = &held[0] else {
+    let (
+        i,
+        Event::FollowHeld {
+            followed_s, why, ..
+        },
+    ) = &held[0]
+    else {
         panic!("{held:?}");
     };
     assert_eq!((*i, *why), (55, FollowEnd::AtRest));
@@ -1130,7 +1144,7 @@ fn an_estop_follows_no_longer_than_its_time() {
         let (_, ev) = b.tick(t(i));
         if i == 61 {
             assert!(
-                matches!(ev[..], [Event::EstopHeld { why: FollowEnd::TimeUp, followed_s }] if (followed_s - 0.11).abs() < 1e-12),
+                matches!(ev[..], [Event::FollowHeld { why: FollowEnd::TimeUp, followed_s, .. }] if (followed_s - 0.11).abs() < 1e-12),
                 "{ev:?}"
             );
         }
@@ -1166,7 +1180,7 @@ fn an_estop_holds_when_the_commands_stop_coming() {
     assert!(
         matches!(
             held[..],
-            [Event::EstopHeld {
+            [Event::FollowHeld {
                 why: FollowEnd::Silent,
                 ..
             }]
@@ -1231,4 +1245,88 @@ fn a_torque_off_during_the_follow_ends_it() {
         b.command(t(51), &names(&["a"]), &[0.255]),
         vec![Event::Ignored(Operator::Estop)]
     );
+}
+
+/// The lifecycle's deactivate, as `ros2 lifecycle set /joint_bridge deactivate` takes it.
+fn deactivate(b: &mut JointBridge<Recorder>) {
+    use joint_bridge::managed::{ManagedState, apply, find};
+    let tr = find(ManagedState::Active, 4, "").unwrap();
+    assert_eq!(apply(b, tr).unwrap(), ManagedState::Inactive);
+}
+
+#[test]
+fn a_deactivate_mid_walk_follows_the_commands_to_rest_like_an_estop() {
+    let (mut b, log) = walking_then(0.3, deactivate);
+    assert_eq!(b.operator(), Some(Operator::Inactive));
+    assert_eq!(b.following(), Some(Operator::Inactive));
+    assert!(!b.estop_following());
+    // The planner's brake, followed exactly; at rest at tick 55: held, said once.
+    let braking = [0.254, 0.257, 0.259, 0.26, 0.26];
+    let mut held = Vec::new();
+    for (i, &q) in (51..).zip(&braking) {
+        assert!(b.command(t(i), &names(&["a"]), &[q]).is_empty());
+        let (_, ev) = b.tick(t(i));
+        held.extend(ev);
+    }
+    assert_eq!(
+        held,
+        vec![Event::FollowHeld {
+            by: Operator::Inactive,
+            followed_s: t(55) - t(50),
+            why: FollowEnd::AtRest
+        }]
+    );
+    assert!(
+        held[0].to_string().starts_with(
+            "inactive: holding after following the commands for 0.05 s (the commands came to rest)"
+        ),
+        "{}",
+        held[0]
+    );
+    for (i, q) in (51..=55).zip(braking) {
+        assert!(close(written_at(&log, i), q), "tick {i}");
+    }
+    assert_eq!(b.following(), None);
+    assert_eq!(
+        b.command(t(56), &names(&["a"]), &[0.9]),
+        vec![Event::Ignored(Operator::Inactive)]
+    );
+    let _ = b.tick(t(56));
+    assert!(close(written_at(&log, 56), 0.26));
+}
+
+#[test]
+fn an_activate_or_an_estop_while_a_deactivate_follows() {
+    use joint_bridge::managed::{ManagedState, apply, find};
+    // Activated again while following: the follow ends, commands are taken as before.
+    let (mut b, log) = walking_then(0.3, deactivate);
+    b.command(t(51), &names(&["a"]), &[0.254]);
+    let _ = b.tick(t(51));
+    let tr = find(ManagedState::Inactive, 3, "").unwrap();
+    assert_eq!(apply(&mut b, tr).unwrap(), ManagedState::Active);
+    assert_eq!((b.following(), b.operator()), (None, None));
+    assert!(b.command(t(52), &names(&["a"]), &[0.258]).is_empty());
+    let _ = b.tick(t(52));
+    assert!(close(written_at(&log, 52), 0.258));
+    // An e-stop while a deactivate follows: stop now, held at once for both.
+    let (mut b, log) = walking_then(0.3, deactivate);
+    b.command(t(51), &names(&["a"]), &[0.254]);
+    let _ = b.tick(t(51));
+    b.estop();
+    assert_eq!(b.following(), None);
+    b.command(t(52), &names(&["a"]), &[0.257]);
+    let _ = b.tick(t(52));
+    assert!(close(written_at(&log, 52), 0.254));
+}
+
+#[test]
+fn a_deactivate_without_follow_time_holds_at_once() {
+    let (mut b, log) = walking_then(0.0, deactivate);
+    assert_eq!(b.following(), None);
+    assert_eq!(
+        b.command(t(51), &names(&["a"]), &[0.255]),
+        vec![Event::Ignored(Operator::Inactive)]
+    );
+    let _ = b.tick(t(51));
+    assert!(close(written_at(&log, 51), 0.25));
 }

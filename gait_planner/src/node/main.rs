@@ -565,9 +565,9 @@ fn run() -> anyhow::Result<()> {
         let mut last_sent: Option<(GaitPhase, Option<AnkleTargets>)> = None;
         // When the joint bridge holds (e-stop, torque off, inactive) the walk's time slows to
         // a stop along the plan, as `~/pause` does: the bridge's e-stop follows the commands
-        // to that rest before it holds (`estop_follow_s`), so the walk resumes where the
-        // joints were held. (A torque-off or inactive hold is at once: the plan moves on by
-        // the rest of the brake, which the bridge's limiter catches up with on release.)
+        // (and a deactivate) to that rest before it holds (`estop_follow_s`), so the walk
+        // resumes where the joints were held. (A torque-off holds at once: the plan moves on
+        // by the rest of the brake, which the bridge's limiter catches up with on release.)
         let mut bridge_holds = false;
         let mut paused_for_bridge = false;
         let mut clock = PlanClock::new(brake_ticks(planner.config()));
