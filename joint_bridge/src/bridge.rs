@@ -527,8 +527,10 @@ impl<B: Backend> JointBridge<B> {
     /// Torque off (on shutdown, signals, errors).
     pub fn stop(&mut self) -> Result<(), BackendError> {
         let r = self.backend.deactivate();
-        // Stopped on purpose: no later command may turn the torque back on.
+        // Stopped on purpose: no later command may turn the torque back on, nor a stop still
+        // following the commands move the joints.
         self.tripped = false;
+        self.follow = None;
         if self.state != Lifecycle::Unconfigured {
             self.state = Lifecycle::Inactive;
         }

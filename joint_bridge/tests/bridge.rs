@@ -1320,6 +1320,16 @@ fn an_activate_or_an_estop_while_a_deactivate_follows() {
 }
 
 #[test]
+fn a_cleanup_right_after_a_deactivate_ends_its_follow() {
+    use joint_bridge::managed::{ManagedState, apply, find};
+    let (mut b, _log) = walking_then(0.3, deactivate);
+    assert_eq!(b.following(), Some(Operator::Inactive));
+    let tr = find(ManagedState::Inactive, 2, "").unwrap();
+    assert_eq!(apply(&mut b, tr).unwrap(), ManagedState::Unconfigured);
+    assert_eq!(b.following(), None);
+}
+
+#[test]
 fn a_deactivate_without_follow_time_holds_at_once() {
     let (mut b, log) = walking_then(0.0, deactivate);
     assert_eq!(b.following(), None);
