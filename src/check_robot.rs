@@ -63,7 +63,9 @@ pub fn check(req: &CheckRequest) -> anyhow::Result<CheckOutcome> {
     };
     describe(&mut out.report, &model, &req.urdf);
 
-    match req.params.resolve(&model) {
+    // Durations left at 0 (auto) searched once, for the defaults printed and the trial plan.
+    let params = req.params.with_auto_timing(&model).map(|(p, _)| p);
+    match params.clone().and_then(|p| p.resolve(&model)) {
         Ok(p) => {
             let _ = writeln!(
                 out.report,
@@ -79,7 +81,8 @@ pub fn check(req: &CheckRequest) -> anyhow::Result<CheckOutcome> {
         }
         Err(e) => out.problems.push(format!("gait parameters: {e}")),
     }
-    match GaitPlanner::new(model.clone(), req.params.clone())
+    match params
+        .and_then(|p| GaitPlanner::new(model.clone(), p))
         .and_then(|mut p| p.plan(WalkRequest::Steps(TRIAL_STEPS)))
     {
         Ok(samples) => {

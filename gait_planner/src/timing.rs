@@ -540,84 +540,83 @@ pub fn fastest_walk(model: &BipedModel, params: &GaitParams) -> Result<FastestWa
     } else {
         vec![params.hip_height_m]
     };
-    let mut trials: Vec<WalkTrial> = Vec::new();
-    let mut best: Option<(f64, GaitParams)> = None;
-    // Tries one walk; keeps it if fastest; true if accepted.
-    let mut try_walk = |trials: &mut Vec<WalkTrial>, step_length_m: f64, hip_height_m: f64| {
+    // One walk: accepted (planned speed and durations) or refused (why).
+    let try_walk = |step_length_m: f64, hip_height_m: f64| {
         let trial = GaitParams {
             step_length_m,
             hip_height_m,
             ..params.clone()
         };
-        let outcome = GaitPlanner::new(model.clone(), trial).map(|planner| {
-            let c = planner.config();
-            let speed = c.step_length_m / c.step_period_s();
-            if best.as_ref().is_none_or(|(v, _)| speed > *v) {
-                best = Some((
-                    speed,
-                    GaitParams {
-                        step_length_m,
-                        hip_height_m,
-                        shift_duration_s: c.shift_duration_s,
-                        step_duration_s: c.step_duration_s,
-                        crouch_duration_s: c.crouch_duration_s,
-                        ..params.clone()
-                    },
-                ));
-            }
-            let timing = Timing {
-                shift_duration_s: c.shift_duration_s,
-                step_duration_s: c.step_duration_s,
-                crouch_duration_s: c.crouch_duration_s,
-            };
-            (speed, timing)
-        });
-        let accepted = outcome.is_ok();
-        trials.push(WalkTrial {
+        let outcome = GaitPlanner::new(model.clone(), trial)
+            .map(|planner| {
+                let c = planner.config();
+                let timing = Timing {
+                    shift_duration_s: c.shift_duration_s,
+                    step_duration_s: c.step_duration_s,
+                    crouch_duration_s: c.crouch_duration_s,
+                };
+                (c.step_length_m / c.step_period_s(), timing)
+            })
+            .map_err(|e| e.to_string());
+        WalkTrial {
             step_length_m,
             hip_height_m,
-            outcome: outcome.map_err(|e| e.to_string()),
-        });
-        accepted
-    };
-    // The grid, remembering where each winner so far came from.
-    let mut grid_best: Option<(f64, usize, f64)> = None;
-    for &hip_height_m in &hips {
-        for (i, &step_length_m) in steps.iter().enumerate() {
-            try_walk(&mut trials, step_length_m, hip_height_m);
-            if let Some(Ok((v, _))) = trials.last().map(|t| t.outcome.as_ref())
-                && grid_best.is_none_or(|(b, _, _)| *v > b)
-            {
-                grid_best = Some((*v, i, hip_height_m));
-            }
+            outcome,
         }
-    }
+    };
+    // The fastest accepted so far (the first of equals: the higher hip, the shorter step).
+    let fastest = |trials: &[WalkTrial]| {
+        trials
+            .iter()
+            .filter_map(|t| t.outcome.as_ref().ok().map(|(v, d)| (*v, t, *d)))
+            .fold(None, |best: Option<(f64, &WalkTrial, Timing)>, x| {
+                if best.is_some_and(|b| b.0 >= x.0) {
+                    best
+                } else {
+                    Some(x)
+                }
+            })
+            .map(|(v, t, d)| (v, t.step_length_m, t.hip_height_m, d))
+    };
+    let mut trials: Vec<WalkTrial> = hips
+        .iter()
+        .flat_map(|&hip| steps.iter().map(move |&step| (step, hip)))
+        .map(|(step, hip)| try_walk(step, hip))
+        .collect();
     // The fastest is mostly the longest step its hip height allows: when the next longer
     // step of the grid was refused, bisect between them at that hip height.
-    if let Some((_, i, hip)) = grid_best {
-        let refused_next = steps.get(i + 1).is_some_and(|&next| {
-            trials
-                .iter()
-                .any(|t| t.step_length_m == next && t.hip_height_m == hip && t.outcome.is_err())
-        });
-        if refused_next {
-            let (mut lo, mut hi) = (steps[i], steps[i + 1]);
-            for _ in 0..WALK_STEP_BISECTIONS {
-                let mid = mm((lo + hi) / 2.0);
-                if mid <= lo || mid >= hi {
-                    break;
-                }
-                if try_walk(&mut trials, mid, hip) {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
+    if let Some((_, step, hip, _)) = fastest(&trials)
+        && let Some(i) = steps.iter().position(|&v| v == step)
+        && let Some(&next) = steps.get(i + 1)
+        && trials
+            .iter()
+            .any(|t| t.step_length_m == next && t.hip_height_m == hip && t.outcome.is_err())
+    {
+        let (mut lo, mut hi) = (step, next);
+        for _ in 0..WALK_STEP_BISECTIONS {
+            let mid = mm((lo + hi) / 2.0);
+            if mid <= lo || mid >= hi {
+                break;
             }
+            let t = try_walk(mid, hip);
+            if t.outcome.is_ok() {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+            trials.push(t);
         }
     }
-    match best {
-        Some((speed_m_s, params)) => Ok(FastestWalk {
-            params,
+    match fastest(&trials) {
+        Some((speed_m_s, step_length_m, hip_height_m, d)) => Ok(FastestWalk {
+            params: GaitParams {
+                step_length_m,
+                hip_height_m,
+                shift_duration_s: d.shift_duration_s,
+                step_duration_s: d.step_duration_s,
+                crouch_duration_s: d.crouch_duration_s,
+                ..params.clone()
+            },
             speed_m_s,
             trials,
         }),

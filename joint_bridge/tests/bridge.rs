@@ -1082,56 +1082,78 @@ fn written_at(log: &Arc<Mutex<Vec<Call>>>, i: u32) -> f64 {
     p[0]
 }
 
-#[test]
-fn an_estop_follows_the_commands_to_rest_then_holds_and_ignores_them() {
-    let (mut b, log) = walking_then_estop(0.3);
-    // Reported at once (the node's ~/holding: the planner brakes), yet still following.
-    assert_eq!(b.operator(), Some(Operator::Estop));
-    assert!(b.estop_following());
-    // The planner's brake: +4, +3, +2, +1 mrad, then the same command (at rest).
-    let braking = [0.254, 0.257, 0.259, 0.26, 0.26];
-    let mut held = Vec::new();
-    for (i, &q) in (51..).zip(&braking) {
-        let ev = b.command(t(i), &names(&["a"]), &[q]);
-        assert!(ev.is_empty(), "tick {i}: {ev:?}");
-        let (_, ev) = b.tick(t(i));
-        held.extend(ev.into_iter().map(|e| (i, e)));
-    }
-    // Said once, at tick 55: followed from tick 50's time for 0.05 s, the commands at rest.
-    assert_eq!(held.len(), 1, "{held:?}");
-    let (
-        i,
-        Event::FollowHeld {
-            followed_s, why, ..
-        },
-    ) = &held[0]
-    else {
-        panic!("{held:?}");
-    };
-    assert_eq!((*i, *why), (55, FollowEnd::AtRest));
-    assert!((followed_s - 0.05).abs() < 1e-12, "{followed_s}");
-    // Followed exactly through tick 54; tick 55's command equals tick 54's: at rest, held.
-    for (i, q) in (51..=55).zip(braking) {
-        assert!(close(written_at(&log, i), q), "tick {i}");
-    }
-    assert!(!b.estop_following());
-    // From then on commands are ignored (said once) and the joint stays at 0.26.
+/// The command at tick `i` is ignored, said as held by `by`, and the joint stays at `at_rad`.
+fn assert_ignored(
+    b: &mut JointBridge<Recorder>,
+    log: &Arc<Mutex<Vec<Call>>>,
+    i: u32,
+    by: Operator,
+    at_rad: f64,
+) {
     assert_eq!(
-        b.command(t(56), &names(&["a"]), &[0.9]),
-        vec![Event::Ignored(Operator::Estop)]
+        b.command(t(i), &names(&["a"]), &[0.9]),
+        vec![Event::Ignored(by)]
     );
-    let _ = b.tick(t(56));
-    assert!(close(written_at(&log, 56), 0.26));
-    for i in 57..=70 {
-        assert!(b.command(t(i), &names(&["a"]), &[0.9]).is_empty());
-        let _ = b.tick(t(i));
-        assert!(close(written_at(&log, i), 0.26), "tick {i}");
+    let _ = b.tick(t(i));
+    assert!(close(written_at(log, i), at_rad), "tick {i}");
+}
+
+#[test]
+fn an_estop_or_a_deactivate_follows_the_commands_to_rest_then_holds_and_ignores_them() {
+    type Stop = fn(&mut JointBridge<Recorder>);
+    for (by, stop, said) in [
+        (
+            Operator::Estop,
+            JointBridge::estop as Stop,
+            "emergency stop",
+        ),
+        (Operator::Inactive, deactivate as Stop, "inactive"),
+    ] {
+        let (mut b, log) = walking_then(0.3, stop);
+        // Reported at once (the node's ~/holding: the planner brakes), yet still following.
+        assert_eq!(b.operator(), Some(by));
+        assert_eq!(b.following(), Some(by));
+        assert_eq!(b.estop_following(), by == Operator::Estop);
+        // The planner's brake: +4, +3, +2, +1 mrad, then the same command (at rest).
+        let braking = [0.254, 0.257, 0.259, 0.26, 0.26];
+        let mut held = Vec::new();
+        for (i, &q) in (51..).zip(&braking) {
+            let ev = b.command(t(i), &names(&["a"]), &[q]);
+            assert!(ev.is_empty(), "tick {i}: {ev:?}");
+            let (_, ev) = b.tick(t(i));
+            held.extend(ev.into_iter().map(|e| (i, e)));
+        }
+        // Said once, at tick 55: followed from tick 50's time for 0.05 s, at rest.
+        let want = Event::FollowHeld {
+            by,
+            followed_s: t(55) - t(50),
+            why: FollowEnd::AtRest,
+        };
+        assert_eq!(held, vec![(55, want.clone())]);
+        assert_eq!(
+            want.to_string(),
+            format!(
+                "{said}: holding after following the commands for 0.05 s (the commands came to rest)"
+            )
+        );
+        // Followed exactly through tick 54; tick 55's command equals tick 54's: held.
+        for (i, q) in (51..=55).zip(braking) {
+            assert!(close(written_at(&log, i), q), "tick {i}");
+        }
+        assert_eq!(b.following(), None);
+        // From then on commands are ignored (said once) and the joint stays at 0.26.
+        assert_ignored(&mut b, &log, 56, by, 0.26);
+        for i in 57..=70 {
+            assert!(b.command(t(i), &names(&["a"]), &[0.9]).is_empty());
+            let _ = b.tick(t(i));
+            assert!(close(written_at(&log, i), 0.26), "tick {i}");
+        }
+        // Released: the commands move the joint again, at 2 rad/s.
+        assert!(b.release(by));
+        b.command(t(71), &names(&["a"]), &[0.9]);
+        let _ = b.tick(t(71));
+        assert!(close(written_at(&log, 71), 0.28));
     }
-    // Released: the commands move the joint again, at 2 rad/s.
-    assert!(b.release_estop());
-    b.command(t(71), &names(&["a"]), &[0.9]);
-    let _ = b.tick(t(71));
-    assert!(close(written_at(&log, 71), 0.28));
 }
 
 #[test]
@@ -1187,15 +1209,6 @@ fn an_estop_holds_when_the_commands_stop_coming() {
         ),
         "{held:?}"
     );
-    // And without a follow time the stop holds at once: the next command is ignored.
-    let (mut b, log) = walking_then_estop(0.0);
-    assert!(!b.estop_following());
-    assert_eq!(
-        b.command(t(51), &names(&["a"]), &[0.255]),
-        vec![Event::Ignored(Operator::Estop)]
-    );
-    let _ = b.tick(t(51));
-    assert!(close(written_at(&log, 51), 0.25));
 }
 
 #[test]
@@ -1226,12 +1239,7 @@ fn a_second_estop_while_following_holds_at_once() {
     assert!(b.estop_following());
     b.estop();
     assert!(!b.estop_following());
-    assert_eq!(
-        b.command(t(52), &names(&["a"]), &[0.257]),
-        vec![Event::Ignored(Operator::Estop)]
-    );
-    let _ = b.tick(t(52));
-    assert!(close(written_at(&log, 52), 0.254));
+    assert_ignored(&mut b, &log, 52, Operator::Estop, 0.254);
 }
 
 #[test]
@@ -1255,47 +1263,6 @@ fn deactivate(b: &mut JointBridge<Recorder>) {
 }
 
 #[test]
-fn a_deactivate_mid_walk_follows_the_commands_to_rest_like_an_estop() {
-    let (mut b, log) = walking_then(0.3, deactivate);
-    assert_eq!(b.operator(), Some(Operator::Inactive));
-    assert_eq!(b.following(), Some(Operator::Inactive));
-    assert!(!b.estop_following());
-    // The planner's brake, followed exactly; at rest at tick 55: held, said once.
-    let braking = [0.254, 0.257, 0.259, 0.26, 0.26];
-    let mut held = Vec::new();
-    for (i, &q) in (51..).zip(&braking) {
-        assert!(b.command(t(i), &names(&["a"]), &[q]).is_empty());
-        let (_, ev) = b.tick(t(i));
-        held.extend(ev);
-    }
-    assert_eq!(
-        held,
-        vec![Event::FollowHeld {
-            by: Operator::Inactive,
-            followed_s: t(55) - t(50),
-            why: FollowEnd::AtRest
-        }]
-    );
-    assert!(
-        held[0].to_string().starts_with(
-            "inactive: holding after following the commands for 0.05 s (the commands came to rest)"
-        ),
-        "{}",
-        held[0]
-    );
-    for (i, q) in (51..=55).zip(braking) {
-        assert!(close(written_at(&log, i), q), "tick {i}");
-    }
-    assert_eq!(b.following(), None);
-    assert_eq!(
-        b.command(t(56), &names(&["a"]), &[0.9]),
-        vec![Event::Ignored(Operator::Inactive)]
-    );
-    let _ = b.tick(t(56));
-    assert!(close(written_at(&log, 56), 0.26));
-}
-
-#[test]
 fn an_activate_or_an_estop_while_a_deactivate_follows() {
     use joint_bridge::managed::{ManagedState, apply, find};
     // Activated again while following: the follow ends, commands are taken as before.
@@ -1314,9 +1281,7 @@ fn an_activate_or_an_estop_while_a_deactivate_follows() {
     let _ = b.tick(t(51));
     b.estop();
     assert_eq!(b.following(), None);
-    b.command(t(52), &names(&["a"]), &[0.257]);
-    let _ = b.tick(t(52));
-    assert!(close(written_at(&log, 52), 0.254));
+    assert_ignored(&mut b, &log, 52, Operator::Estop, 0.254);
 }
 
 #[test]
@@ -1330,13 +1295,14 @@ fn a_cleanup_right_after_a_deactivate_ends_its_follow() {
 }
 
 #[test]
-fn a_deactivate_without_follow_time_holds_at_once() {
-    let (mut b, log) = walking_then(0.0, deactivate);
-    assert_eq!(b.following(), None);
-    assert_eq!(
-        b.command(t(51), &names(&["a"]), &[0.255]),
-        vec![Event::Ignored(Operator::Inactive)]
-    );
-    let _ = b.tick(t(51));
-    assert!(close(written_at(&log, 51), 0.25));
+fn without_a_follow_time_an_estop_or_a_deactivate_holds_at_once() {
+    type Stop = fn(&mut JointBridge<Recorder>);
+    for (by, stop) in [
+        (Operator::Estop, JointBridge::estop as Stop),
+        (Operator::Inactive, deactivate as Stop),
+    ] {
+        let (mut b, log) = walking_then(0.0, stop);
+        assert_eq!(b.following(), None);
+        assert_ignored(&mut b, &log, 51, by, 0.25);
+    }
 }
