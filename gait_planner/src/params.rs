@@ -43,7 +43,8 @@ pub mod auto {
 #[serde(deny_unknown_fields, default)]
 pub struct GaitParams {
     /// How far the front foot ends ahead of the other after a step (m); the swing foot of a
-    /// full step travels twice this (the paper's s). 0 = auto.
+    /// full step travels twice this (the paper's s). 0 = auto (a fraction of the leg,
+    /// lowered until the check walk passes).
     pub step_length_m: f64,
     /// Longest backward step (m): how far the swing foot may land behind the stance foot
     /// when `cmd_vel` asks to walk backward. 0 = auto (the forward step length, lowered
@@ -287,7 +288,7 @@ impl GaitParams {
     /// margin, pausing anywhere within `pause_brake_time_s` or
     /// [`crate::timing::PAUSE_BRAKE_BUDGET_S`], the servos' torque budget when given),
     /// scaled from [`auto::REFERENCE_TIMING_S`] for the ones left at 0 and from the others
-    /// as set. The step limits the search verified (back, side, turn) are set explicitly, so
+    /// as set. The step limits the search verified (forward, back, side, turn) are set explicitly, so
     /// the faster timing never lowers an auto one. Durations set by hand stay as set (and
     /// are checked with the rest by [`crate::GaitPlanner::new`]). With no duration at 0,
     /// the parameters unchanged and no search. Costs one timing search (0.3-1.2 s, a
@@ -324,6 +325,7 @@ impl GaitParams {
             shift_duration_s: pick(0, t.shift_duration_s),
             step_duration_s: pick(1, t.step_duration_s),
             crouch_duration_s: pick(2, t.crouch_duration_s),
+            step_length_m: found.params.step_length_m,
             back_step_length_m: found.params.back_step_length_m,
             side_step_m: found.params.side_step_m,
             turn_step_rad: found.params.turn_step_rad,

@@ -255,7 +255,22 @@ impl GaitPlanner {
     /// The check walks of [`Self::new`], settling the auto step limits.
     fn check_limits(&mut self, params: &GaitParams) -> Result<(), GaitError> {
         self.brakes.borrow_mut().clear();
-        self.check_walk(Stride::forward(self.cfg.step_length_m))?;
+        let fwd = if params.step_length_m == 0.0 {
+            self.settle_limit("step_length_m", true, self.cfg.step_length_m, |v| {
+                vec![Stride::forward(v)]
+            })?
+        } else {
+            // Set by hand: refused for the check walk's own reason, phase and tick.
+            self.check_walk(Stride::forward(self.cfg.step_length_m))?;
+            self.cfg.step_length_m
+        };
+        if fwd != self.cfg.step_length_m {
+            // The auto back step follows the forward step it derives from.
+            if params.back_step_length_m == 0.0 {
+                self.cfg.back_step_length_m = crate::params::auto::BACK_STEP_PER_STEP * fwd;
+            }
+            self.cfg.step_length_m = fwd;
+        }
         let back = self.settle_limit(
             "back_step_length_m",
             params.back_step_length_m == 0.0,
@@ -263,7 +278,6 @@ impl GaitPlanner {
             |v| vec![Stride::forward(-v)],
         )?;
         self.cfg.back_step_length_m = back;
-        let fwd = self.cfg.step_length_m;
         let side = self.settle_limit(
             "side_step_m",
             params.side_step_m == 0.0,
@@ -377,7 +391,7 @@ impl GaitPlanner {
 
     /// A step limit whose check walks all pass: the value itself, or for an auto value
     /// the largest passing one below it, found by bisection to 1/64 of it (0 when none
-    /// passes: that way is not walked).
+    /// passes: that way is not walked; for the forward step, refused as at the auto value).
     fn settle_limit(
         &self,
         key: &'static str,
@@ -397,7 +411,7 @@ impl GaitPlanner {
                 value_m,
                 cause: Box::new(e),
             }),
-            Some(_) => {
+            Some(e) => {
                 let (mut lo, mut hi) = (0.0, value_m);
                 for _ in 0..crate::params::auto::BISECTIONS {
                     let mid = (lo + hi) / 2.0;
@@ -406,6 +420,10 @@ impl GaitPlanner {
                     } else {
                         hi = mid;
                     }
+                }
+                // No forward step at all is no walk: refused for why the auto one failed.
+                if lo == 0.0 && key == "step_length_m" {
+                    return Err(e);
                 }
                 Ok(lo)
             }

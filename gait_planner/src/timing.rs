@@ -380,6 +380,7 @@ pub fn fastest_timing_with_brake(
     let reference = GaitPlanner::new(model.clone(), params.clone())?;
     let settled = reference.config();
     let fixed = GaitParams {
+        step_length_m: settled.step_length_m,
         back_step_length_m: settled.back_step_length_m,
         side_step_m: settled.side_step_m,
         turn_step_rad: settled.turn_step_rad,

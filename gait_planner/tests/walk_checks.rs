@@ -5,6 +5,7 @@
 
 mod common;
 use common::*;
+use gait_planner::params::{hip_height_for, leg_length_m};
 use gait_planner::{
     GaitError, GaitParams, GaitPlanner, GaitSample, PhaseKind, Support, WalkRequest,
 };
@@ -248,4 +249,42 @@ fn too_fast_a_step_is_refused_naming_the_joint() {
     .unwrap_err();
     assert!(matches!(err, GaitError::TooFast { .. }), "{err:?}");
     assert!(err.to_string().contains("rad/s"), "{err}");
+}
+
+/// A forward step left at 0 (auto) that the check walk refuses is lowered until it passes,
+/// like the other step limits: on hips raised to 0.94 x leg the default robot's knees would
+/// straighten too fast for a step of 0.25 x leg (set by hand, that is refused, naming the
+/// phase); the auto step is the largest passing one, to the bisection's 1/64 of the auto
+/// value.
+#[test]
+fn an_auto_step_the_check_walk_refuses_is_lowered_until_it_passes() {
+    let model = default_model();
+    let leg = leg_length_m(&model);
+    let high = GaitParams {
+        hip_height_m: hip_height_for(&model, 0.94),
+        ..GaitParams::default()
+    };
+    let auto = 0.25 * leg;
+    let by_hand = |step_length_m: f64| {
+        GaitPlanner::new(
+            model.clone(),
+            GaitParams {
+                step_length_m,
+                ..high.clone()
+            },
+        )
+    };
+    match by_hand(auto) {
+        Err(e @ GaitError::TooFast { .. }) => assert!(e.phase().is_some(), "{e}"),
+        other => panic!("wanted TooFast, got {other:?}"),
+    }
+    let mut planner = GaitPlanner::new(model.clone(), high.clone()).expect("auto step lowered");
+    let step = planner.config().step_length_m;
+    assert!(step < auto && step > 0.0, "{step} of {auto}");
+    // The auto back step follows the lowered forward step.
+    assert!(planner.config().back_step_length_m <= step);
+    let samples = planner.plan(WalkRequest::Steps(4)).unwrap();
+    check_walk(&model, &planner, &samples);
+    assert!(by_hand(step).is_ok());
+    assert!(by_hand(step + auto / 64.0).is_err());
 }
