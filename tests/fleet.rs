@@ -11,18 +11,32 @@ use common::{bin_dir, json_of, python_in_netns};
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::{BipedModel, Side};
 use serde_json::Value;
+use std::path::PathBuf;
 
 /// Runs a peer scenario in a new network namespace and returns what it recorded.
 fn peer(scenario: &str, domain_id: u32) -> Value {
+    peer_with_params(scenario, domain_id, None)
+}
+
+/// A slow walk's parameter file in tests/data (the defaults before #16): `gait_slow.yaml`
+/// (the default robot) or `biped6_slow.yaml` (the six-joint robot), for the scenarios whose
+/// expectations are computed by hand for that walk.
+fn slow_params(file: &str) -> PathBuf {
+    common::root().join("tests/data").join(file)
+}
+
+/// [`peer`] with every node (or `biped launch`) given the parameter file `params`.
+fn peer_with_params(scenario: &str, domain_id: u32, params: Option<PathBuf>) -> Value {
+    let mut cmd = python_in_netns("fleet_peer.py", domain_id);
+    cmd.arg(scenario).arg(bin_dir());
+    if let Some(p) = params {
+        cmd.arg(p);
+    }
     json_of(
-        python_in_netns("fleet_peer.py", domain_id)
-            .arg(scenario)
-            .arg(bin_dir())
-            .env(
-                "BIPED_TEST_LOG_DIR",
-                std::env::temp_dir()
-                    .join(format!("biped-launch-{domain_id}-{}", std::process::id())),
-            ),
+        cmd.env(
+            "BIPED_TEST_LOG_DIR",
+            std::env::temp_dir().join(format!("biped-launch-{domain_id}-{}", std::process::id())),
+        ),
         &format!("peer scenario {scenario}"),
     )
 }
@@ -173,7 +187,7 @@ fn rosout_has(v: &Value, node: &str, needles: &[&str]) -> bool {
 
 #[test]
 fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
-    let v = peer("walk", 61);
+    let v = peer_with_params("walk", 61, Some(slow_params("gait_slow.yaml")));
     assert_eq!(v["nodes_seen"], true, "nodes: {}", v["node_names"]);
     assert_eq!(v["matched"], true);
     assert_eq!(
@@ -199,9 +213,10 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
         .filter(|c| stamps.contains(&c["stamp"].as_i64().unwrap()))
         .collect();
 
-    // The same walk planned offline, as `biped plan` does.
+    // The same walk planned offline, as `biped plan` does (the nodes have the slow walk's
+    // parameter file).
     let model = BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None).unwrap();
-    let plan = GaitPlanner::new(model.clone(), GaitParams::default())
+    let plan = GaitPlanner::new(model.clone(), GaitParams::slow(&model))
         .unwrap()
         .plan(WalkRequest::Steps(2))
         .unwrap();
@@ -283,7 +298,7 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
         GaitParams {
             foot_lift_m: 0.02,
             step_duration_s: 0.0,
-            ..GaitParams::default()
+            ..GaitParams::slow(&model)
         },
     )
     .unwrap();
@@ -341,7 +356,7 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
 /// the side of travel opens by twice the step; the other closes behind it).
 #[test]
 fn an_rclpy_teleop_side_steps_the_robot_and_the_walk_ends_when_it_stops() {
-    let v = peer("teleop", 64);
+    let v = peer_with_params("teleop", 64, Some(slow_params("gait_slow.yaml")));
     assert_eq!(v["nodes_seen"], true);
     assert_eq!(v["matched"], true);
     assert_eq!(v["flowing"], true, "{}", v["flow_diag"]);
@@ -565,11 +580,12 @@ fn an_rclpy_peer_watches_and_walks_the_simulated_robot_in_real_time() {
         );
     }
     // Ground truth: the base in the world frame moved forward by about the planned 2 steps
-    // (2 × 45 mm), the centre of pressure and the support polygon were published.
+    // (the defaults: 2 × 63 mm, 0.35 × the 0.18 m leg), the centre of pressure and the
+    // support polygon were published.
     let base = v["base"].as_array().unwrap();
     assert_eq!(base[0]["frame"], "world");
     let dx = base[base.len() - 1]["x"].as_f64().unwrap() - base[0]["x"].as_f64().unwrap();
-    assert!((0.07..0.11).contains(&dx), "base moved {dx} m");
+    assert!((0.10..0.15).contains(&dx), "base moved {dx} m");
     assert!(v["cop_count"].as_u64().unwrap() > 500);
     let sizes: Vec<u64> = v["polygon_sizes"]
         .as_array()
@@ -596,7 +612,7 @@ fn an_rclpy_peer_watches_and_walks_the_simulated_robot_in_real_time() {
 /// the simulator's ground truth.
 #[test]
 fn an_rclpy_teleop_turns_then_walks_the_simulated_six_joint_robot() {
-    let v = peer("teleop_sim", 65);
+    let v = peer_with_params("teleop_sim", 65, Some(slow_params("biped6_slow.yaml")));
     assert_eq!(v["nodes_seen"], true);
     assert_eq!(v["flowing"], true);
     assert_eq!(v["matched"], true);
@@ -1097,7 +1113,7 @@ fn biped_launch_restarts_a_killed_node_while_the_bridge_holds() {
 /// pose from mid-step, which threw the robot over before) and refuses a walk, saying why.
 #[test]
 fn the_simulated_robot_stands_through_an_estop_and_each_node_killed_mid_walk() {
-    let v = peer("sim_kill", 91);
+    let v = peer_with_params("sim_kill", 91, Some(slow_params("gait_slow.yaml")));
     assert_eq!(v["nodes_seen"], true);
     assert_eq!(v["flowing"], true, "no joint_states or base pose");
     assert_eq!(v["walking"], true, "the walk never started");

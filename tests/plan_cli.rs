@@ -77,10 +77,14 @@ impl Csv {
 
 #[test]
 fn csv_has_the_contract_header_and_agrees_with_forward_kinematics() {
+    let slow = root().join("tests/data/gait_slow.yaml");
+    let slow = slow.to_str().unwrap();
     let dir = tmp("fk");
     let csv_path = dir.join("plan.csv");
     let out = biped(&[
         "plan",
+        "--params",
+        slow,
         "--steps",
         "3",
         "--csv",
@@ -176,7 +180,7 @@ fn csv_has_the_contract_header_and_agrees_with_forward_kinematics() {
     ] {
         assert!(phases.contains_key(p), "phase {p} missing");
     }
-    // 3 steps of 0.045 m: feet end together 0.135 m ahead.
+    // 3 steps of 0.045 m (the slow walk): feet end together 0.135 m ahead.
     let last = csv.rows.last().unwrap();
     assert!(
         (csv.num(last, "l_ankle_x") - 0.135).abs() < 1e-12
@@ -422,14 +426,18 @@ fn bad_input_gets_a_clear_error() {
 }
 
 /// `--twist` walks sideways and backward: the feet end where the step limits of the default
-/// robot put them (side step 0.1 x leg = 18 mm per step, hand-computed; the back step is a
+/// robot's slow walk (tests/data/gait_slow.yaml) put them (side step 0.1 x leg = 18 mm per step, hand-computed; the back step is a
 /// velocity x the 3 s step period), pictures and all; a turn or a NaN is refused by name.
 #[test]
 fn twist_walks_sideways_and_backward() {
+    let slow = root().join("tests/data/gait_slow.yaml");
+    let slow = slow.to_str().unwrap();
     let dir = tmp("twist");
     let side = dir.join("side/plan.csv");
     let out = biped(&[
         "plan",
+        "--params",
+        slow,
         "--steps",
         "4",
         "--twist",
@@ -454,6 +462,8 @@ fn twist_walks_sideways_and_backward() {
     let back = dir.join("back/plan.csv");
     let out = biped(&[
         "plan",
+        "--params",
+        slow,
         "--steps",
         "3",
         "--twist=-0.01,0,0",
@@ -469,6 +479,8 @@ fn twist_walks_sideways_and_backward() {
     // Beyond the limit: scaled, with a warning naming what is walked.
     let out = biped(&[
         "plan",
+        "--params",
+        slow,
         "--steps",
         "1",
         "--twist",
@@ -498,16 +510,20 @@ fn twist_walks_sideways_and_backward() {
     assert!(!Path::new(csv).exists(), "nothing written on error");
 }
 
-/// A robot with hip yaw joints turns: 4 steps of 0.03 rad/s x the 3 s step period = 0.09 rad
+/// A robot with hip yaw joints turns (its slow walk, tests/data/biped6_slow.yaml): 4 steps of 0.03 rad/s x the 3 s step period = 0.09 rad
 /// per step end with the pelvis and both feet turned 0.36 rad (the side of the turn opens
 /// by twice the step at each of its swings, the other closes parallel).
 #[test]
 fn twist_turns_a_robot_with_hip_yaw() {
+    let slow = root().join("tests/data/biped6_slow.yaml");
+    let slow = slow.to_str().unwrap();
     let dir = tmp("turn");
     let csv_path = dir.join("plan.csv");
     let robot = root().join("tests/data/biped6_renamed.urdf");
     let out = biped(&[
         "plan",
+        "--params",
+        slow,
         "--robot",
         robot.to_str().unwrap(),
         "--steps",

@@ -16,11 +16,11 @@ use crate::error::GaitError;
 /// Fractions of the leg length (L1 + L2) used when a length is left at 0.
 pub mod auto {
     /// Step length: distance the front foot ends ahead of the other.
-    pub const STEP_LENGTH_PER_LEG: f64 = 0.25;
+    pub const STEP_LENGTH_PER_LEG: f64 = 0.35;
     /// Swing foot lift.
     pub const FOOT_LIFT_PER_LEG: f64 = 0.12;
     /// Hip-pitch-axis to ankle-pitch-axis height while walking.
-    pub const HIP_DROP_PER_LEG: f64 = 0.85;
+    pub const HIP_DROP_PER_LEG: f64 = 0.8;
     /// Minimum CoM margin and minimum ZMP margin, as a fraction of the narrower sole side.
     pub const MARGIN_PER_SOLE_WIDTH: f64 = 1.0 / 6.0;
     /// Longest backward step, as a fraction of the forward step length.
@@ -108,9 +108,9 @@ impl Default for GaitParams {
             back_step_length_m: 0.0,
             side_step_m: 0.0,
             turn_step_rad: 0.0,
-            step_duration_s: 1.0,
-            shift_duration_s: 2.0,
-            crouch_duration_s: 1.0,
+            step_duration_s: 0.0,
+            shift_duration_s: 0.0,
+            crouch_duration_s: 0.0,
             foot_lift_m: 0.0,
             hip_height_m: 0.0,
             control_rate_hz: 100.0,
@@ -271,6 +271,23 @@ impl GaitParams {
             .ok()
             .and_then(|v| v.as_mapping().map(|m| m.contains_key(name)))
             .unwrap_or(false)
+    }
+
+    /// The slow walk of the defaults before #16, for `model`: steps of 0.25 x leg on hips
+    /// 0.85 x leg (set explicitly), shift 2 s, step 1 s, crouch 1 s ([`auto::REFERENCE_TIMING_S`]),
+    /// the rest as [`Default`]. A third of the default walk's speed (0.013 m/s on the default
+    /// robot), with the widest margins: the walk to first try a new robot's hardware with,
+    /// and the reference many hand-computed tests are written against.
+    pub fn slow(model: &BipedModel) -> GaitParams {
+        let [shift, step, crouch] = auto::REFERENCE_TIMING_S;
+        GaitParams {
+            step_length_m: 0.25 * leg_length_m(model),
+            hip_height_m: hip_height_for(model, 0.85),
+            shift_duration_s: shift,
+            step_duration_s: step,
+            crouch_duration_s: crouch,
+            ..GaitParams::default()
+        }
     }
 
     /// True when a duration is left at 0 (auto): [`Self::with_auto_timing`] fills it in.

@@ -33,6 +33,12 @@ use crate::timing::{Edges, quadratic_scale_limit_on};
 use crate::trajectory::{min_jerk, min_jerk_integral, min_jerk_rate};
 use crate::zmp::{GRAVITY_M_S2, cart_table_zmp};
 
+/// A tick that moves the plan time on by less than this (plan ticks) leaves it where it was:
+/// rounding, not motion. The last tick of an n-tick brake moves it on by about 2.5/n³ ticks:
+/// more than this up to 1000-tick brakes (10 s at 100 Hz); a longer one comes to rest a tick
+/// sooner, by less than a nanotick.
+pub const REST_TICKS: f64 = 1e-9;
+
 /// Points per ramp at which [`shortest_brake_s`] checks the ZMP (u = 0, 1/N, ..., 1).
 pub const RAMP_POINTS: usize = 40;
 
@@ -185,10 +191,15 @@ impl PlanClock {
 
     /// [`Self::tick`] for control tick `k`: its plan time in plan ticks, `k - lost`, never
     /// below the last one's (the sums of a ramp round in the last bit; a planner refuses
-    /// time that runs back). Never paused: exactly `k`.
+    /// time that runs back), and exactly the last one's when it would move on by less than
+    /// [`REST_TICKS`] (at rest, paused or frozen: `k - lost` with both growing rounds
+    /// differently from tick to tick). Never paused: exactly `k`.
     pub fn plan_ticks(&mut self, k: u64, frozen: bool) -> f64 {
         let lost = self.tick(frozen);
-        let t = (k as f64 - lost).max(0.0).max(self.last_plan_ticks);
+        let mut t = (k as f64 - lost).max(0.0).max(self.last_plan_ticks);
+        if t - self.last_plan_ticks < REST_TICKS {
+            t = self.last_plan_ticks;
+        }
         self.last_plan_ticks = t;
         t
     }
@@ -269,6 +280,33 @@ pub fn shortest_brake_s(ticks: &[PlannedCom], min_margin_m: f64) -> BrakeBound {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Paused (or frozen), the plan time stands exactly still, however long: the joint
+    /// commands of a paused walk do not change in the last bit either (`k - lost` with both
+    /// growing rounded differently from tick to tick).
+    #[test]
+    fn at_rest_the_plan_time_does_not_move_in_the_last_bit() {
+        for (brake, from) in [(25, 337_u64), (8, 1000), (13, 45_678)] {
+            let mut c = PlanClock::new(brake);
+            for k in 0..from {
+                c.plan_ticks(k, false);
+            }
+            c.pause();
+            for k in from..from + u64::from(brake) + 1 {
+                c.plan_ticks(k, false);
+            }
+            assert!(c.at_rest());
+            let rest = c.plan_ticks(from + u64::from(brake) + 1, false);
+            for k in from + u64::from(brake) + 2..from + 100_000 {
+                let frozen = k % 7 == 0;
+                assert_eq!(
+                    c.plan_ticks(k, frozen).to_bits(),
+                    rest.to_bits(),
+                    "tick {k}"
+                );
+            }
+        }
+    }
 
     fn square(half_m: f64) -> Vec<Xy> {
         vec![

@@ -9,7 +9,7 @@ use gait_planner::{GaitParams, GaitPlanner, Stride, Support, WalkRequest};
 use ik_solver::{BipedModel, Side};
 
 fn walk_and_check(model: BipedModel, stride: Option<Stride>) {
-    let mut planner = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+    let mut planner = GaitPlanner::new(model.clone(), GaitParams::slow(&model)).unwrap();
     if let Some(stride) = stride {
         planner.set_stride(stride).unwrap();
     }

@@ -66,3 +66,9 @@ pub fn expected(steps: u32, first: Side) -> Vec<String> {
 pub fn phase_ticks(samples: &[GaitSample], kind: PhaseKind) -> usize {
     samples.iter().filter(|s| s.phase == kind).count()
 }
+
+/// The slow walk the hand-computed tests are written against (the defaults before #16):
+/// [`GaitParams::slow`] of the default robot.
+pub fn slow() -> GaitParams {
+    GaitParams::slow(&default_model())
+}

@@ -10,7 +10,7 @@ use gait_planner::{GaitParams, GaitPlanner, Stride, Support, WalkRequest};
 use ik_solver::{BipedModel, LegOdometry, Side};
 
 fn follow(model: BipedModel, stride: Stride, steps: u32) -> f64 {
-    let mut planner = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+    let mut planner = GaitPlanner::new(model.clone(), GaitParams::slow(&model)).unwrap();
     planner.set_stride(stride).unwrap();
     let plan = planner.plan(WalkRequest::Steps(steps)).unwrap();
     let mut planted = Side::Left;
@@ -79,7 +79,7 @@ fn leg_odometry_of_a_planned_walk_is_the_planned_base() {
 #[test]
 fn the_covariance_grows_with_the_path_walked() {
     let model = default_model();
-    let mut planner = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+    let mut planner = GaitPlanner::new(model.clone(), GaitParams::slow(&model)).unwrap();
     let first = planner.update(0.0).unwrap();
     let odo = LegOdometry::new(&model, first.base_world, &first.joints_rad, Side::Left).unwrap();
     // Standing: 2 mm and 0.005 rad; row-major 6 x 6, variances on the diagonal.
@@ -89,7 +89,7 @@ fn the_covariance_grows_with_the_path_walked() {
     assert!((c[35] - 0.005f64.powi(2)).abs() < 1e-18);
     assert_eq!(c[1], 0.0);
     // After 0.1 m: 2 mm + 5 % of 0.1 m = 7 mm, 0.005 + 0.005 = 0.01 rad.
-    let mut planner = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+    let mut planner = GaitPlanner::new(model.clone(), GaitParams::slow(&model)).unwrap();
     let plan = planner.plan(WalkRequest::Steps(2)).unwrap();
     let mut odo =
         LegOdometry::new(&model, plan[0].base_world, &plan[0].joints_rad, Side::Left).unwrap();
@@ -111,7 +111,7 @@ fn the_covariance_grows_with_the_path_walked() {
 #[test]
 fn a_bad_joint_vector_is_refused() {
     let model = default_model();
-    let mut planner = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+    let mut planner = GaitPlanner::new(model.clone(), GaitParams::slow(&model)).unwrap();
     let first = planner.update(0.0).unwrap();
     let mut odo =
         LegOdometry::new(&model, first.base_world, &first.joints_rad, Side::Left).unwrap();

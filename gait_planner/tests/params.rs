@@ -16,16 +16,33 @@ fn the_shipped_file_gives_the_defaults() {
 
 #[test]
 fn auto_values_scale_with_the_robot() {
+    // Durations set, so that resolving does not search a timing (durations_left_at_auto...).
+    let timed = GaitParams {
+        shift_duration_s: 2.0,
+        step_duration_s: 1.0,
+        crouch_duration_s: 1.0,
+        ..GaitParams::default()
+    };
     // Default robot: L1 = L2 = 0.09, ankle-to-sole 0.03, sole 0.10 x 0.06.
-    let c = GaitParams::default().resolve(&default_model()).unwrap();
-    assert!((c.step_length_m - 0.045).abs() < 1e-12);
+    let c = timed.resolve(&default_model()).unwrap();
+    assert!((c.step_length_m - 0.35 * 0.18).abs() < 1e-12);
     assert!((c.foot_lift_m - 0.0216).abs() < 1e-12);
-    assert!((c.hip_height_m - (0.03 + 0.85 * 0.18)).abs() < 1e-12);
+    assert!((c.hip_height_m - (0.03 + 0.8 * 0.18)).abs() < 1e-12);
     assert!((c.min_com_margin_m - 0.01).abs() < 1e-12);
     // Test biped: L1 0.11, L2 0.10, hip offset 0.015, ankle-to-sole 0.035, sole 0.12 x 0.07.
-    let c = GaitParams::default().resolve(&biped6_model()).unwrap();
-    assert!((c.hip_height_m - (0.035 + 0.015 + 0.85 * 0.21)).abs() < 1e-12);
+    let c = timed.resolve(&biped6_model()).unwrap();
+    assert!((c.hip_height_m - (0.035 + 0.015 + 0.8 * 0.21)).abs() < 1e-12);
     assert!((c.min_com_margin_m - 0.07 / 6.0).abs() < 1e-12);
+    // The slow walk of the tests: 0.25 x leg on hips 0.85 x leg, 2 s / 1 s / 1 s.
+    let c = GaitParams::slow(&biped6_model())
+        .resolve(&biped6_model())
+        .unwrap();
+    assert!((c.step_length_m - 0.25 * 0.21).abs() < 1e-12);
+    assert!((c.hip_height_m - (0.035 + 0.015 + 0.85 * 0.21)).abs() < 1e-12);
+    assert_eq!(
+        (c.shift_duration_s, c.step_duration_s, c.crouch_duration_s),
+        (2.0, 1.0, 1.0)
+    );
 }
 
 #[test]
@@ -47,7 +64,7 @@ ik_solver:
     assert_eq!(p.control_rate_hz, 50.0);
     assert_eq!(p.step_length_m, 0.03);
     assert_eq!(p.first_foot, Side::Right);
-    assert_eq!(p.step_duration_s, 1.0);
+    assert_eq!(p.step_duration_s, 0.0);
 }
 
 #[test]
@@ -86,7 +103,7 @@ fn out_of_bounds_values_name_the_key_and_value() {
         (
             GaitParams {
                 control_rate_hz: 2000.0,
-                ..GaitParams::default()
+                ..slow()
             },
             "control_rate_hz",
             2000.0,
@@ -94,7 +111,7 @@ fn out_of_bounds_values_name_the_key_and_value() {
         (
             GaitParams {
                 step_duration_s: 0.05,
-                ..GaitParams::default()
+                ..slow()
             },
             "step_duration_s",
             0.05,
@@ -102,7 +119,7 @@ fn out_of_bounds_values_name_the_key_and_value() {
         (
             GaitParams {
                 step_duration_s: -1.0,
-                ..GaitParams::default()
+                ..slow()
             },
             "step_duration_s",
             -1.0,
@@ -113,7 +130,7 @@ fn out_of_bounds_values_name_the_key_and_value() {
                 shift_duration_s: 0.0,
                 step_duration_s: 0.0,
                 foot_lift_m: 1.0,
-                ..GaitParams::default()
+                ..slow()
             },
             "foot_lift_m",
             1.0,
@@ -121,7 +138,7 @@ fn out_of_bounds_values_name_the_key_and_value() {
         (
             GaitParams {
                 shift_duration_s: f64::NAN,
-                ..GaitParams::default()
+                ..slow()
             },
             "shift_duration_s",
             f64::NAN,
@@ -129,7 +146,7 @@ fn out_of_bounds_values_name_the_key_and_value() {
         (
             GaitParams {
                 step_length_m: -0.01,
-                ..GaitParams::default()
+                ..slow()
             },
             "step_length_m",
             -0.01,
@@ -137,7 +154,7 @@ fn out_of_bounds_values_name_the_key_and_value() {
         (
             GaitParams {
                 hip_height_m: 0.5,
-                ..GaitParams::default()
+                ..slow()
             },
             "hip_height_m",
             0.5,
@@ -145,7 +162,7 @@ fn out_of_bounds_values_name_the_key_and_value() {
         (
             GaitParams {
                 foot_lift_m: 1.0,
-                ..GaitParams::default()
+                ..slow()
             },
             "foot_lift_m",
             1.0,
@@ -164,7 +181,7 @@ fn out_of_bounds_values_name_the_key_and_value() {
     }
     let msg = GaitParams {
         control_rate_hz: 2000.0,
-        ..GaitParams::default()
+        ..slow()
     }
     .resolve(&model)
     .unwrap_err()
@@ -184,7 +201,7 @@ fn written_parameters_read_back_the_same() {
         shift_duration_s: 0.72,
         first_foot: Side::Right,
         rise_at_end: true,
-        ..GaitParams::default()
+        ..slow()
     };
     let text = p.to_ros_yaml_string().unwrap();
     assert!(

@@ -17,7 +17,7 @@ fn fast_params() -> GaitParams {
         control_rate_hz: 1000.0,
         shift_duration_s: 1.0,
         step_duration_s: 0.6,
-        ..GaitParams::default()
+        ..slow()
     }
 }
 
@@ -138,7 +138,7 @@ fn the_brake_shortens_as_the_walk_slows() {
     let brake = |shift_s: f64| {
         let p = GaitParams {
             shift_duration_s: shift_s,
-            ..GaitParams::default()
+            ..slow()
         };
         GaitPlanner::new(default_model(), p)
             .unwrap()

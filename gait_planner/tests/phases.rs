@@ -10,7 +10,7 @@ use ik_solver::Side;
 #[test]
 fn one_two_and_seven_steps() {
     assert_eq!(
-        sequence(&plan(1, GaitParams::default())),
+        sequence(&plan(1, slow())),
         [
             "crouch",
             "shift",
@@ -21,7 +21,7 @@ fn one_two_and_seven_steps() {
         ]
     );
     assert_eq!(
-        sequence(&plan(2, GaitParams::default())),
+        sequence(&plan(2, slow())),
         [
             "crouch",
             "shift",
@@ -33,10 +33,7 @@ fn one_two_and_seven_steps() {
             "center"
         ]
     );
-    assert_eq!(
-        sequence(&plan(7, GaitParams::default())),
-        expected(7, Side::Left)
-    );
+    assert_eq!(sequence(&plan(7, slow())), expected(7, Side::Left));
 }
 
 #[test]
@@ -44,7 +41,7 @@ fn right_foot_first_and_rise_at_end() {
     let p = GaitParams {
         first_foot: Side::Right,
         rise_at_end: true,
-        ..GaitParams::default()
+        ..slow()
     };
     let mut want = expected(3, Side::Right);
     want.push("rise".into());
@@ -53,8 +50,8 @@ fn right_foot_first_and_rise_at_end() {
 
 #[test]
 fn n_steps_advance_n_step_lengths_and_end_feet_together() {
-    let samples = plan(5, GaitParams::default());
-    let planner = planner(GaitParams::default());
+    let samples = plan(5, slow());
+    let planner = planner(slow());
     let step = planner.config().step_length_m;
     let last = samples.last().unwrap();
     let [l, r] = last.ankles_world_m;
@@ -74,7 +71,7 @@ fn phases_last_their_configured_durations() {
         step_duration_s: 0.7,
         shift_duration_s: 0.9,
         crouch_duration_s: 0.5,
-        ..GaitParams::default()
+        ..slow()
     };
     let samples = plan(2, p);
     // 100 Hz; each phase's ticks are (start, end], the crouch also has its t = 0 tick.
@@ -87,7 +84,7 @@ fn phases_last_their_configured_durations() {
 
 /// Walks until stopped, sends Stop at `stop_at_s`, runs until idle.
 fn walk_and_stop(stop_at_s: f64) -> Vec<GaitSample> {
-    let mut p = planner(GaitParams::default());
+    let mut p = planner(slow());
     p.request(WalkRequest::UntilStop);
     let mut out = Vec::new();
     for k in 0..100_000 {
@@ -163,11 +160,11 @@ fn stop_in_every_phase_ends_at_the_next_feet_together_point() {
 
 #[test]
 fn stop_in_the_closing_phases_changes_nothing() {
-    let full = plan(1, GaitParams::default());
+    let full = plan(1, slow());
     // One step: crouch [0,1], shift (1,3], half_step (3,4], shift (4,6], final_half_step
     // (6,7], center (7,9].
     for stop_at in [6.5, 8.0] {
-        let mut p = planner(GaitParams::default());
+        let mut p = planner(slow());
         p.request(WalkRequest::Steps(1));
         let mut out = Vec::new();
         for k in 0..10_000 {
@@ -187,7 +184,7 @@ fn stop_in_the_closing_phases_changes_nothing() {
 
 #[test]
 fn a_new_step_count_during_a_walk_counts_from_the_next_swing() {
-    let mut p = planner(GaitParams::default());
+    let mut p = planner(slow());
     p.request(WalkRequest::Steps(2));
     let mut out = Vec::new();
     for k in 0..100_000 {
@@ -207,7 +204,7 @@ fn a_new_step_count_during_a_walk_counts_from_the_next_swing() {
 
 #[test]
 fn idle_planner_holds_still_and_a_later_walk_starts_without_a_second_crouch() {
-    let mut p = planner(GaitParams::default());
+    let mut p = planner(slow());
     let a = p.update(0.0).unwrap();
     let b = p.update(5.0).unwrap();
     assert_eq!(a.phase, PhaseKind::Idle);
@@ -223,7 +220,7 @@ fn idle_planner_holds_still_and_a_later_walk_starts_without_a_second_crouch() {
 
 #[test]
 fn time_going_backwards_or_nan_is_refused() {
-    let mut p = planner(GaitParams::default());
+    let mut p = planner(slow());
     p.update(1.0).unwrap();
     assert!(matches!(
         p.update(0.5),
@@ -240,12 +237,12 @@ fn time_going_backwards_or_nan_is_refused() {
 fn a_walk_started_at_any_tick_has_the_ticks_of_the_offline_plan() {
     // The node starts walks at whatever tick the command arrives, t0 = k0 / rate; rounding in
     // t0 + duration must not move a boundary tick into the next phase.
-    let offline: Vec<(PhaseKind, u32)> = plan(2, GaitParams::default())
+    let offline: Vec<(PhaseKind, u32)> = plan(2, slow())
         .iter()
         .map(|s| (s.phase, s.step_index))
         .collect();
     for k0 in (1..400).step_by(7).chain([357, 1234, 98_765]) {
-        let mut p = planner(GaitParams::default());
+        let mut p = planner(slow());
         for k in 0..k0 {
             p.update(k as f64 / 100.0).unwrap();
         }

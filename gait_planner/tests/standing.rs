@@ -23,7 +23,7 @@ fn joint_state(model: &BipedModel, q: &[f64]) -> (Vec<String>, Vec<f64>) {
 
 /// A turning walk's sample in the middle of its first full swing, and the idle sample.
 fn mid_swing_and_idle(model: &BipedModel) -> (Vec<f64>, Vec<f64>) {
-    let mut p = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+    let mut p = GaitPlanner::new(model.clone(), GaitParams::slow(model)).unwrap();
     let idle = p.update(0.0).unwrap().joints_rad;
     let c = p.config().clone();
     let turn = if model.leg(Side::Left).has_yaw() {

@@ -16,7 +16,7 @@ fn params(side_m: f64, back_m: f64) -> GaitParams {
     GaitParams {
         side_step_m: side_m,
         back_step_length_m: back_m,
-        ..GaitParams::default()
+        ..slow()
     }
 }
 
@@ -167,7 +167,7 @@ fn velocities_become_strides_within_the_limits() {
 
 #[test]
 fn a_nan_or_a_turn_is_refused_by_name() {
-    let planner = planner(GaitParams::default());
+    let planner = planner(slow());
     let c = planner.config();
     let nan = c
         .stride_for(
@@ -228,7 +228,7 @@ fn a_side_step_set_by_hand_beyond_reach_is_refused_naming_it() {
 
 #[test]
 fn the_auto_limits_of_the_default_robot_pass_their_check_walks() {
-    let c = planner(GaitParams::default()).config().clone();
+    let c = planner(slow()).config().clone();
     // Leg 0.18 m: 0.1 x leg sideways, the forward step backward; both pass as derived.
     assert!((c.side_step_m - 0.018).abs() < 1e-12, "{}", c.side_step_m);
     assert!((c.back_step_length_m - c.step_length_m).abs() < 1e-12);
@@ -244,7 +244,7 @@ fn walk_random(
 ) -> (gait_planner::GaitConfig, Vec<GaitSample>) {
     let p = GaitParams {
         control_rate_hz: 20.0,
-        ..GaitParams::default()
+        ..GaitParams::slow(model)
     };
     let mut planner = GaitPlanner::new(model.clone(), p).unwrap();
     let c = planner.config().clone();
@@ -328,7 +328,7 @@ fn a_turn_in_place_turns_the_feet_about_the_point_between_them() {
     // The six-joint robot (hip yaw): 2 steps of 0.1 rad. The left foot (the side of the
     // turn) turns by 0.2 rad about the point between the feet, the right comes back
     // parallel; the closing half step has nothing left to do.
-    let mut planner = GaitPlanner::new(biped6_model(), GaitParams::default()).unwrap();
+    let mut planner = GaitPlanner::new(biped6_model(), GaitParams::slow(&biped6_model())).unwrap();
     planner
         .set_stride(Stride {
             turn_rad: 0.1,
@@ -375,7 +375,7 @@ fn the_robot_without_hip_yaw_refuses_a_turn_limit_by_name() {
         default_model(),
         GaitParams {
             turn_step_rad: 0.1,
-            ..GaitParams::default()
+            ..slow()
         },
     )
     .unwrap_err()

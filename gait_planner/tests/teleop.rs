@@ -5,7 +5,7 @@
 
 mod common;
 use common::*;
-use gait_planner::{GaitParams, GaitPlanner, GaitSample, PhaseKind, Velocity, VelocityFollower};
+use gait_planner::{GaitPlanner, GaitSample, PhaseKind, Velocity, VelocityFollower};
 
 const RATE_HZ: f64 = 100.0;
 
@@ -56,7 +56,7 @@ fn starts(samples: &[GaitSample], kind: PhaseKind) -> Vec<f64> {
 
 #[test]
 fn a_stream_that_stops_ends_the_walk_within_the_timeout_plus_one_phase() {
-    let mut planner = planner(GaitParams::default());
+    let mut planner = planner(slow());
     let c = planner.config().clone();
     // A teleop at 10 Hz sidestepping left for 10 s, then nothing.
     let last_k = 1000;
@@ -116,7 +116,7 @@ fn a_stream_that_stops_ends_the_walk_within_the_timeout_plus_one_phase() {
 
 #[test]
 fn a_zero_command_ends_the_walk_and_a_new_velocity_is_taken_at_the_next_swing() {
-    let mut planner = planner(GaitParams::default());
+    let mut planner = planner(slow());
     let step_s = planner.config().step_period_s();
     // Forward 10 mm per step until 8 s, then 9 mm per step back, zero at 20 s.
     let (samples, _) = drive(
@@ -170,7 +170,7 @@ fn a_zero_command_ends_the_walk_and_a_new_velocity_is_taken_at_the_next_swing() 
 
 #[test]
 fn a_turn_is_refused_once_by_name_and_the_robot_stays_put() {
-    let mut planner = planner(GaitParams::default());
+    let mut planner = planner(slow());
     let (samples, log) = drive(
         &mut planner,
         |k| (k % 10 == 0).then_some(vel(0.005, 0.0, 0.3)),
@@ -186,7 +186,7 @@ fn a_turn_is_refused_once_by_name_and_the_robot_stays_put() {
 
 #[test]
 fn a_steady_command_beyond_the_limits_is_walked_at_the_limit_and_warned_once() {
-    let mut planner = planner(GaitParams::default());
+    let mut planner = planner(slow());
     let (samples, log) = drive(
         &mut planner,
         |k| (k % 10 == 0 && k < 1500).then_some(vel(1.0, 0.0, 0.0)),
@@ -217,7 +217,7 @@ fn a_steady_command_beyond_the_limits_is_walked_at_the_limit_and_warned_once() {
 
 #[test]
 fn a_nan_command_is_refused_by_name_every_time_and_the_walk_times_out() {
-    let mut planner = planner(GaitParams::default());
+    let mut planner = planner(slow());
     let (samples, log) = drive(
         &mut planner,
         |k| match k {

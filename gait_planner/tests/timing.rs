@@ -21,7 +21,7 @@ fn shorter(params: &GaitParams, slot: usize, factor: f64) -> GaitParams {
 }
 
 fn check_tight(model: ik_solver::BipedModel) {
-    let f = fastest_timing(&model, &GaitParams::default()).unwrap();
+    let f = fastest_timing(&model, &GaitParams::slow(&model)).unwrap();
     eprintln!("{f:?}");
     let t = f.timing;
     let fastest = f.params.clone();
@@ -34,7 +34,7 @@ fn check_tight(model: ik_solver::BipedModel) {
         (t.shift_duration_s, t.step_duration_s, t.crouch_duration_s)
     );
     // The step limits are those of the default walk, not lowered to buy speed.
-    let reference = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+    let reference = GaitPlanner::new(model.clone(), GaitParams::slow(&model)).unwrap();
     let walk = GaitPlanner::new(model.clone(), fastest.clone()).expect("the fastest timing passes");
     let (a, b) = (reference.config(), walk.config());
     assert_eq!(
@@ -50,7 +50,7 @@ fn check_tight(model: ik_solver::BipedModel) {
         "brake {brake_s} s"
     );
     // Without the budget it is as fast or faster, never slower.
-    let free = fastest_timing_with_brake(&model, &GaitParams::default(), None)
+    let free = fastest_timing_with_brake(&model, &GaitParams::slow(&model), None)
         .unwrap()
         .timing;
     assert!(
@@ -109,7 +109,7 @@ fn a_reference_walk_that_fails_its_checks_is_refused() {
         &default_model(),
         &GaitParams {
             shift_duration_s: 0.3,
-            ..GaitParams::default()
+            ..slow()
         },
     )
     .unwrap_err();
@@ -122,11 +122,11 @@ fn a_reference_walk_that_fails_its_checks_is_refused() {
 #[test]
 fn a_servo_model_bounds_the_timing_by_torque() {
     let model = default_model();
-    let free = fastest_timing(&model, &GaitParams::default()).unwrap();
+    let free = fastest_timing(&model, &slow()).unwrap();
     let servo = GaitParams {
         servo_damping_nm_s_per_rad: 0.25,
         servo_armature_kg_m2: 0.005,
-        ..GaitParams::default()
+        ..slow()
     };
     let budget = fastest_timing(&model, &servo).unwrap();
     eprintln!("{free:?}\n{budget:?}");
@@ -141,11 +141,16 @@ fn a_servo_model_bounds_the_timing_by_torque() {
 }
 
 fn auto_durations() -> GaitParams {
+    auto_durations_of(&default_model())
+}
+
+/// The slow walk of `model` with every duration left at 0 (auto).
+fn auto_durations_of(model: &ik_solver::BipedModel) -> GaitParams {
     GaitParams {
         shift_duration_s: 0.0,
         step_duration_s: 0.0,
         crouch_duration_s: 0.0,
-        ..GaitParams::default()
+        ..GaitParams::slow(model)
     }
 }
 
@@ -159,13 +164,13 @@ fn durations(p: &GaitParams) -> (f64, f64, f64) {
 #[test]
 fn durations_left_at_auto_are_the_fastest_timing() {
     for model in [default_model(), biped6_model()] {
-        let planner = GaitPlanner::new(model.clone(), auto_durations()).unwrap();
-        let fastest = fastest_timing(&model, &GaitParams::default()).unwrap();
+        let planner = GaitPlanner::new(model.clone(), auto_durations_of(&model)).unwrap();
+        let fastest = fastest_timing(&model, &GaitParams::slow(&model)).unwrap();
         let c = planner.config();
         assert_eq!(durations(c), durations(&fastest.params));
         assert!(c.shift_duration_s < 2.0 && c.step_duration_s < 1.0, "{c:?}");
         assert_eq!(planner.auto_timing(), Some(&fastest));
-        let slow = GaitPlanner::new(model.clone(), GaitParams::default()).unwrap();
+        let slow = GaitPlanner::new(model.clone(), GaitParams::slow(&model)).unwrap();
         let s = slow.config();
         assert_eq!(
             (c.back_step_length_m, c.side_step_m, c.turn_step_rad),
@@ -173,7 +178,7 @@ fn durations_left_at_auto_are_the_fastest_timing() {
         );
         assert!(slow.auto_timing().is_none());
         // `resolve` (what `biped check-robot` prints) gives the same durations.
-        let resolved = auto_durations().resolve(&model).unwrap();
+        let resolved = auto_durations_of(&model).resolve(&model).unwrap();
         assert_eq!(durations(&resolved), durations(c));
     }
 }
@@ -217,7 +222,7 @@ fn a_duration_set_by_hand_beside_auto_ones_stays_and_is_checked() {
     let mut planner = planner;
     planner.set_params(shift_by_hand).unwrap();
     assert_eq!(planner.config().shift_duration_s, 1.5);
-    planner.set_params(GaitParams::default()).unwrap();
+    planner.set_params(slow()).unwrap();
     assert_eq!(durations(planner.config()), (2.0, 1.0, 1.0));
     assert!(planner.auto_timing().is_none());
 }
@@ -231,7 +236,12 @@ fn the_fastest_walk_is_the_fastest_accepted_trial() {
         WALK_HIP_DROP_PER_LEG, WALK_STEP_BISECTIONS, WALK_STEP_PER_LEG, fastest_walk,
     };
     let model = default_model();
-    let w = fastest_walk(&model, &auto_durations()).unwrap();
+    let lengths_auto = GaitParams {
+        step_length_m: 0.0,
+        hip_height_m: 0.0,
+        ..auto_durations()
+    };
+    let w = fastest_walk(&model, &lengths_auto).unwrap();
     let grid = WALK_STEP_PER_LEG.len() * WALK_HIP_DROP_PER_LEG.len();
     let n = w.trials.len();
     assert!(
@@ -255,7 +265,7 @@ fn the_fastest_walk_is_the_fastest_accepted_trial() {
     );
     let top = accepted.iter().cloned().fold(0.0, f64::max);
     assert_eq!(w.speed_m_s, top);
-    // The default robot's leg is 0.18 m: the auto walk steps 0.045 m on 0.183 m hips.
+    // The default robot's leg is 0.18 m: the slow walk steps 0.045 m on 0.183 m hips.
     let plain = GaitPlanner::new(model.clone(), auto_durations()).unwrap();
     let c = plain.config();
     assert!((c.step_length_m - 0.045).abs() < 1e-12, "{c:?}");
@@ -282,7 +292,7 @@ fn the_fastest_walk_is_the_fastest_accepted_trial() {
         &model,
         &GaitParams {
             step_length_m: 0.05,
-            ..auto_durations()
+            ..lengths_auto
         },
     )
     .unwrap();

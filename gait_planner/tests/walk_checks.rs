@@ -152,8 +152,10 @@ fn six_joint_robot_with_other_lengths_walks_with_derived_defaults() {
         .expect("another robot gets a valid walk untuned");
     let samples = planner.plan(WalkRequest::Steps(4)).unwrap();
     check_walk(&model, &planner, &samples);
-    // Its defaults scale with its legs (0.21 m vs the default robot's 0.18 m).
-    assert!((planner.config().step_length_m - 0.25 * 0.21).abs() < 1e-12);
+    // Its defaults scale with its legs (0.21 m vs the default robot's 0.18 m): the auto
+    // step is 0.35 x leg, or lowered until the check walk passes.
+    let step = planner.config().step_length_m;
+    assert!(step > 0.25 * 0.21 && step <= 0.35 * 0.21 + 1e-12, "{step}");
 }
 
 #[test]
@@ -163,7 +165,7 @@ fn one_kilohertz_walk_is_as_smooth() {
         model.clone(),
         GaitParams {
             control_rate_hz: 1000.0,
-            ..GaitParams::default()
+            ..slow()
         },
     )
     .unwrap();
@@ -182,7 +184,7 @@ fn margin_short_of_the_minimum_is_refused_naming_phase_and_shortfall() {
         default_model(),
         GaitParams {
             min_com_margin_m: 0.032,
-            ..GaitParams::default()
+            ..slow()
         },
     )
     .unwrap_err();
@@ -220,7 +222,7 @@ fn a_step_beyond_the_legs_reach_is_refused_naming_the_phase() {
         step_length_m: 0.1,
         step_duration_s: 10.0,
         shift_duration_s: 5.0,
-        ..GaitParams::default()
+        ..slow()
     };
     let err = GaitPlanner::new(default_model(), p).unwrap_err();
     match &err {
@@ -243,7 +245,7 @@ fn too_fast_a_step_is_refused_naming_the_joint() {
             step_duration_s: 0.1,
             step_length_m: 0.07,
             foot_lift_m: 0.03,
-            ..GaitParams::default()
+            ..slow()
         },
     )
     .unwrap_err();
@@ -253,7 +255,7 @@ fn too_fast_a_step_is_refused_naming_the_joint() {
 
 /// A forward step left at 0 (auto) that the check walk refuses is lowered until it passes,
 /// like the other step limits: on hips raised to 0.94 x leg the default robot's knees would
-/// straighten too fast for a step of 0.25 x leg (set by hand, that is refused, naming the
+/// straighten too fast for the auto step of 0.35 x leg (set by hand, that is refused, naming the
 /// phase); the auto step is the largest passing one, to the bisection's 1/64 of the auto
 /// value.
 #[test]
@@ -262,9 +264,10 @@ fn an_auto_step_the_check_walk_refuses_is_lowered_until_it_passes() {
     let leg = leg_length_m(&model);
     let high = GaitParams {
         hip_height_m: hip_height_for(&model, 0.94),
-        ..GaitParams::default()
+        step_length_m: 0.0,
+        ..slow()
     };
-    let auto = 0.25 * leg;
+    let auto = gait_planner::params::auto::STEP_LENGTH_PER_LEG * leg;
     let by_hand = |step_length_m: f64| {
         GaitPlanner::new(
             model.clone(),

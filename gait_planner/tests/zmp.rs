@@ -19,7 +19,7 @@ fn the_first_shift_moves_the_zmp_off_the_com_by_the_min_jerk_peak() {
         1,
         GaitParams {
             shift_duration_s: shift_s,
-            ..GaitParams::default()
+            ..slow()
         },
     );
     let shift: Vec<_> = samples
@@ -60,7 +60,7 @@ fn the_reported_zmp_is_the_cart_table_zmp_of_the_planned_com_path() {
         control_rate_hz: 1000.0,
         shift_duration_s: 1.0,
         step_duration_s: 0.6,
-        ..GaitParams::default()
+        ..slow()
     };
     let s = plan(2, params);
     let dt = 1e-3;
@@ -98,7 +98,7 @@ fn the_reported_zmp_is_the_cart_table_zmp_of_the_planned_com_path() {
 /// change), the first tick too, where the knees start forward from straight legs.
 #[test]
 fn the_crouch_zmp_is_that_of_the_planned_com_path() {
-    let s = plan(1, GaitParams::default());
+    let s = plan(1, slow());
     let dt = 0.01;
     let crouch: Vec<_> = s.iter().filter(|x| x.phase == PhaseKind::Crouch).collect();
     assert_eq!(crouch.len(), 101);
@@ -130,7 +130,7 @@ fn a_shift_too_fast_for_the_zmp_is_refused_naming_phase_and_tick() {
     let fast = GaitParams {
         shift_duration_s: 0.5,
         step_duration_s: 0.45,
-        ..GaitParams::default()
+        ..slow()
     };
     let err = GaitPlanner::new(default_model(), fast.clone()).unwrap_err();
     match &err {

@@ -813,7 +813,8 @@ def scenario_sim_kill(bin_dir, params):
         {"t": peer.now(), "x": m.pose.position.x, "y": m.pose.position.y, "z": m.pose.position.z,
          "qx": m.pose.orientation.x, "qy": m.pose.orientation.y}), qos)
     peer.spin(1.0)
-    launcher = Launcher(bin_dir, ["--backend", "sim", "--log-dir", log_dir, "--respawn-delay", "0.5"])
+    launcher = Launcher(bin_dir, ["--backend", "sim", "--log-dir", log_dir, "--respawn-delay", "0.5"]
+                        + (["--params", params] if params else []))
     pid_of = launcher.pid_of
 
     global NODES
@@ -885,7 +886,8 @@ def scenario_teleop_sim(bin_dir, params):
          "qz": m.pose.pose.orientation.z, "qw": m.pose.pose.orientation.w}), qos)
     n.create_subscription(String, "/sim/fall", lambda m: falls.append(m.data), qos)
     peer.spin(1.0)
-    launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--robot", robot, "--log-dir", log_dir],
+    launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--robot", robot, "--log-dir", log_dir]
+                                + (["--params", params] if params else []),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     STARTED.append(launcher)
     global NODES

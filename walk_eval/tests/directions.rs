@@ -33,7 +33,9 @@ fn walk(urdf: &str, stride: Stride, steps: u32, want_m: [f64; 2]) -> WalkReport 
 /// Plans `steps` swings of `stride` for the robot and plays the plan in physics.
 fn play(urdf: &str, stride: Stride, steps: u32) -> (Vec<GaitSample>, WalkReport) {
     let model = BipedModel::from_urdf_str(urdf, None).unwrap();
-    let mut planner = GaitPlanner::new(model, GaitParams::default()).unwrap();
+    // The slow walk: the strides below are written for its step limits.
+    let params = GaitParams::slow(&model);
+    let mut planner = GaitPlanner::new(model, params).unwrap();
     planner.set_stride(stride).unwrap();
     let plan = planner.plan(WalkRequest::Steps(steps)).unwrap();
     let mut sim = Sim::from_urdf_str(urdf, None, &SimConfig::default()).unwrap();
