@@ -814,7 +814,7 @@ fn an_rclpy_operator_estops_the_walk_and_resets_it_through_the_bridge_services()
 
 /// An operator's `ros2 service call /gait_planner/pause std_srvs/srv/SetBool "{data: true}"`
 /// mid-walk: the planner answers and brings the walk to rest on its path within its brake
-/// time (0.08 s for the default robot); the joint commands stop changing, the phases still
+/// time (0.25 s for the default robot at the defaults); the joint commands stop changing, the phases still
 /// say where the walk stands (it is paused, not over); asked again, it says so; `false`
 /// takes the walk on from there and the commands move again.
 #[test]
@@ -836,11 +836,11 @@ fn an_rclpy_operator_pauses_and_resumes_the_walk_through_the_planner_service() {
         v["resume_t"].as_f64().unwrap(),
     );
     let commands = v["commands"].as_array().unwrap();
-    // At rest from the answer plus the brake (0.08 s) and the pipeline's ticks, until the
-    // resume: published every tick, never changing.
+    // At rest from the answer plus the brake (0.25 s) and the pipeline's ticks, until the
+    // resume: published every tick, never changing (not in the last bit either).
     let held: Vec<&Value> = commands
         .iter()
-        .filter(|c| at(c) > answered + 0.3 && at(c) < resume_t)
+        .filter(|c| at(c) > answered + 0.5 && at(c) < resume_t)
         .collect();
     assert!(
         held.len() > 50,
@@ -860,7 +860,7 @@ fn an_rclpy_operator_pauses_and_resumes_the_walk_through_the_planner_service() {
         .iter()
         .filter(|p| {
             let t = p["stamp"].as_f64().unwrap() * 1e-9;
-            t > answered + 0.3 && t < resume_t
+            t > answered + 0.5 && t < resume_t
         })
         .map(|p| p["phase"].as_str().unwrap())
         .collect();
