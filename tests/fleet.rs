@@ -304,7 +304,9 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     .unwrap();
     let swing_s = auto.config().step_duration_s;
     assert!(swing_s < 1.0, "{swing_s}");
-    let half_step_ticks = phases[v["auto_walk_from"].as_u64().unwrap() as usize..]
+    let auto_walk = v["auto_walk_from"].as_u64().unwrap() as usize
+        ..v["searched_walk_from"].as_u64().unwrap() as usize;
+    let half_step_ticks = phases[auto_walk]
         .iter()
         .filter(|p| p["phase"] == "half_step")
         .count();
@@ -314,6 +316,33 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
         "the first half step of the walk after step_duration_s := 0 (auto: {swing_s} s)"
     );
     assert!(rosout_has(&v, "gait_planner", &["parameters changed"]));
+    // Then a walk command with a new step length: its timing is searched off the control
+    // loop, which publishes its idle ticks meanwhile (searched in the loop, none came between
+    // the two log lines), and the walk follows.
+    assert_eq!(v["searched_walk_finished"], true);
+    let logged = |needle: &str, after: i64| -> Option<i64> {
+        v["rosout"].as_array().unwrap().iter().find_map(|m| {
+            let stamp = m["stamp"].as_i64().unwrap();
+            (m["name"].as_str().unwrap().ends_with("gait_planner")
+                && m["msg"].as_str().unwrap().contains(needle)
+                && stamp > after)
+                .then_some(stamp)
+        })
+    };
+    let searching = logged("searching their timing", 0).expect("the search was logged");
+    let found = logged("durations left at 0 (auto)", searching).expect("its result logged");
+    let during: Vec<&str> = phases
+        .iter()
+        .filter(|p| (searching..found).contains(&p["stamp"].as_i64().unwrap()))
+        .map(|p| p["phase"].as_str().unwrap())
+        .collect();
+    // (The last may be the walk's first tick: stamped at the tick's start, before the log.)
+    assert!(
+        during.len() >= 2 && during[..during.len() - 1].iter().all(|p| *p == "idle"),
+        "phases published during the search: {during:?}"
+    );
+    let from = v["searched_walk_from"].as_u64().unwrap() as usize;
+    assert!(phases[from..].iter().any(|p| p["phase"] == "half_step"));
     assert_eq!(v["set_invalid"]["successful"], false);
     assert!(
         v["set_invalid"]["reason"]

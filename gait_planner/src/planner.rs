@@ -244,6 +244,15 @@ impl GaitPlanner {
         )
     }
 
+    /// True when [`Self::set_params`] with `params` would run the timing search (a duration
+    /// left at 0, and not the parameters of the search this planner keeps): 0.3-1.2 s, to be
+    /// run off a control loop ([`Self::new`] on another thread, then
+    /// [`Self::remember_auto_timing`]).
+    pub fn needs_timing_search(&self, params: &GaitParams) -> bool {
+        params.has_auto_timing()
+            && !matches!(&self.auto_timing, Some((given, _, _)) if given == params)
+    }
+
     /// Takes the timing search `other` made (a planner checked for the same parameters,
     /// e.g. on another thread) so that [`Self::set_params`] with them does not search again.
     pub fn remember_auto_timing(&mut self, other: &GaitPlanner) {

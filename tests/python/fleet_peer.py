@@ -51,7 +51,8 @@ class Peer:
         n.create_subscription(JointState, "/joint_states", lambda m: self.states.append(
             {"t": stamp_ns(m.header) * 1e-9, "name": list(m.name), "position": list(m.position)}), qos)
         n.create_subscription(Log, "/rosout", lambda m: self.rosout.append(
-            {"t": self.now(), "name": m.name, "level": int(m.level), "msg": m.msg}), QoSProfile(depth=1000))
+            {"t": self.now(), "stamp": m.stamp.sec * 1_000_000_000 + m.stamp.nanosec, "name": m.name,
+             "level": int(m.level), "msg": m.msg}), QoSProfile(depth=1000))
         self.walk_pub = n.create_publisher(WalkCommand, "/walk_command", 10)
         self.cmd_vel_pub = n.create_publisher(Twist, "/cmd_vel", 10)
 
@@ -275,12 +276,19 @@ def scenario_walk(bin_dir, params):
     n0 = len(peer.phases)
     peer.walk(1)
 
-    def auto_walk_done():
-        later = [p["phase"] for p in peer.phases[n0:]]
+    def walked_from(n):
+        later = [p["phase"] for p in peer.phases[n:]]
         return any(ph != "idle" for ph in later) and later[-1] == "idle"
 
-    out["auto_walk_finished"] = peer.spin(30.0, auto_walk_done)
+    out["auto_walk_finished"] = peer.spin(30.0, lambda: walked_from(n0))
     out["auto_walk_from"] = n0
+    peer.spin(0.3)
+    # A walk command with a new step length, durations auto: its timing search runs off the
+    # control loop, which goes on ticking meanwhile; then the walk.
+    n1 = len(peer.phases)
+    peer.walk(1, step_length=0.05)
+    out["searched_walk_finished"] = peer.spin(30.0, lambda: walked_from(n1))
+    out["searched_walk_from"] = n1
     peer.spin(0.3)
     out.update(phases=peer.phases, commands=peer.commands, rosout=peer.rosout,
                states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None,

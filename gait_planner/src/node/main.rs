@@ -182,11 +182,26 @@ impl Commands {
         }
     }
 
+    /// Takes a walk command: warnings to log, and the parameters whose timing search must run
+    /// (off the loop) before it can walk, if any: the command waits for it
+    /// ([`GaitPlanner::needs_timing_search`]), nothing else of it is done yet.
     fn walk_command(
         &mut self,
         planner: &mut GaitPlanner,
         c: &WalkCommand,
         base: &mut GaitParams,
+    ) -> (Vec<String>, Option<GaitParams>) {
+        let mut search = None;
+        let warnings = self.walk_command_or_search(planner, c, base, &mut search);
+        (warnings, search)
+    }
+
+    fn walk_command_or_search(
+        &mut self,
+        planner: &mut GaitPlanner,
+        c: &WalkCommand,
+        base: &mut GaitParams,
+        search: &mut Option<GaitParams>,
     ) -> Vec<String> {
         let mut warnings = Vec::new();
         if c.stop {
@@ -233,6 +248,9 @@ impl Commands {
                     "walk_command: step_length = {} and step_duration = {} apply from the next walk; this one keeps its steps",
                     c.step_length, c.step_duration
                 ));
+            } else if planner.needs_timing_search(&params) {
+                *search = Some(params);
+                return warnings;
             } else if let Err(e) = planner.set_params(params.clone()) {
                 warnings.push(format!(
                     "walk_command refused: step_length = {}, step_duration = {}: {e}",
@@ -562,6 +580,9 @@ fn run() -> anyhow::Result<()> {
         // Walk commands with a start time still ahead (bounded; a stop empties it).
         let mut pending: StartQueue<WalkCommand> = StartQueue::default();
         let mut last_stamped: Option<WalkCommand> = None;
+        // A walk command whose new parameters' timing is being searched off the loop.
+        type Search = std::sync::mpsc::Receiver<Result<GaitPlanner, gait_planner::GaitError>>;
+        let mut searching: Option<(Search, WalkCommand)> = None;
         let mut last_sent: Option<(GaitPhase, Option<AnkleTargets>)> = None;
         // When the joint bridge holds (e-stop, torque off, inactive) the walk's time slows to
         // a stop along the plan, as `~/pause` does: the bridge's e-stop follows the commands
@@ -621,9 +642,48 @@ fn run() -> anyhow::Result<()> {
                     }
                 }
             }
+            // A walk command waiting for its parameters' timing search (on its own thread, so
+            // that the loop keeps ticking): when found, it is taken as if it came now.
+            if let Some((rx, _)) = &searching {
+                match rx.try_recv() {
+                    Ok(found) => {
+                        let msg = searching.take().map(|(_, m)| m);
+                        match (found, msg) {
+                            (Ok(checked), Some(msg)) => {
+                                planner.remember_auto_timing(&checked);
+                                if let Some(auto) = checked.auto_timing_summary() {
+                                    ros.info(&format!(
+                                        "durations left at 0 (auto), the fastest the checks allow: {auto}"
+                                    ));
+                                }
+                                let (warnings, again) =
+                                    commands.walk_command(&mut planner, &msg, &mut params);
+                                for w in warnings {
+                                    ros.warn(&w);
+                                }
+                                if again.is_some() {
+                                    ros.warn("walk_command refused: its timing search did not settle");
+                                }
+                            }
+                            (Err(e), Some(msg)) => ros.warn(&format!(
+                                "walk_command refused: step_length = {}, step_duration = {}: {e}",
+                                msg.step_length, msg.step_duration
+                            )),
+                            (_, None) => {}
+                        }
+                    }
+                    Err(std::sync::mpsc::TryRecvError::Empty) => {}
+                    Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                        searching = None;
+                        ros.warn("walk_command refused: its timing search stopped");
+                    }
+                }
+            }
             // In arrival order, each at its start time (zero: now). A stop also cancels the
             // walks still waiting for their start time: a stop means stop.
-            while let Some(msg) = pending.take_due(now.to_nanos()) {
+            while searching.is_none()
+                && let Some(msg) = pending.take_due(now.to_nanos())
+            {
                 if msg.stop {
                     let n = pending.cancel_all();
                     if n > 0 {
@@ -632,8 +692,27 @@ fn run() -> anyhow::Result<()> {
                         ));
                     }
                 }
-                for w in commands.walk_command(&mut planner, &msg, &mut params) {
+                let (warnings, search) = commands.walk_command(&mut planner, &msg, &mut params);
+                for w in warnings {
                     ros.warn(&w);
+                }
+                if let Some(p) = search {
+                    ros.info(
+                        "walk_command: new parameters with durations left at 0 (auto): searching their timing; the walk starts when it is found",
+                    );
+                    let (tx, rx) = std::sync::mpsc::channel();
+                    let model = planner.model().clone();
+                    let spawned = std::thread::Builder::new()
+                        .name("timing-search".into())
+                        .spawn(move || {
+                            let _ = tx.send(GaitPlanner::new(model, p));
+                        });
+                    match spawned {
+                        Ok(_) => searching = Some((rx, msg)),
+                        Err(e) => ros.warn(&format!("walk_command refused: no thread for the timing search: {e}")),
+                    }
+                    // The commands after it wait for it, in order.
+                    break;
                 }
             }
             while let Ok(Some((h, _))) = bridge_holding.take() {
