@@ -78,6 +78,24 @@ fn main() -> ExitCode {
 }
 
 /// The pause brake time in control ticks.
+/// What a timing search off the control loop answers: the checked planner, or why not.
+type SearchResult = Result<GaitPlanner, gait_planner::GaitError>;
+
+/// Runs [`GaitPlanner::new`] for `params` (its timing search, 0.3-1.2 s) on its own thread.
+fn spawn_timing_search(
+    model: &BipedModel,
+    params: GaitParams,
+) -> std::io::Result<std::sync::mpsc::Receiver<SearchResult>> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let model = model.clone();
+    std::thread::Builder::new()
+        .name("timing-search".into())
+        .spawn(move || {
+            let _ = tx.send(GaitPlanner::new(model, params));
+        })?;
+    Ok(rx)
+}
+
 fn brake_ticks(c: &GaitParams) -> u32 {
     (c.pause_brake_time_s * c.control_rate_hz).round() as u32
 }
@@ -581,8 +599,7 @@ fn run() -> anyhow::Result<()> {
         let mut pending: StartQueue<WalkCommand> = StartQueue::default();
         let mut last_stamped: Option<WalkCommand> = None;
         // A walk command whose new parameters' timing is being searched off the loop.
-        type Search = std::sync::mpsc::Receiver<Result<GaitPlanner, gait_planner::GaitError>>;
-        let mut searching: Option<(Search, WalkCommand)> = None;
+        let mut searching: Option<(std::sync::mpsc::Receiver<SearchResult>, WalkCommand)> = None;
         let mut last_sent: Option<(GaitPhase, Option<AnkleTargets>)> = None;
         // When the joint bridge holds (e-stop, torque off, inactive) the walk's time slows to
         // a stop along the plan, as `~/pause` does: the bridge's e-stop follows the commands
@@ -661,8 +678,15 @@ fn run() -> anyhow::Result<()> {
                                 for w in warnings {
                                     ros.warn(&w);
                                 }
-                                if again.is_some() {
-                                    ros.warn("walk_command refused: its timing search did not settle");
+                                // Parameters changed meanwhile (a parameter set): search
+                                // again for the command on the new ones.
+                                if let Some(p) = again {
+                                    match spawn_timing_search(planner.model(), p) {
+                                        Ok(rx) => searching = Some((rx, msg)),
+                                        Err(e) => ros.warn(&format!(
+                                            "walk_command refused: no thread for the timing search: {e}"
+                                        )),
+                                    }
                                 }
                             }
                             (Err(e), Some(msg)) => ros.warn(&format!(
@@ -700,15 +724,8 @@ fn run() -> anyhow::Result<()> {
                     ros.info(
                         "walk_command: new parameters with durations left at 0 (auto): searching their timing; the walk starts when it is found",
                     );
-                    let (tx, rx) = std::sync::mpsc::channel();
-                    let model = planner.model().clone();
-                    let spawned = std::thread::Builder::new()
-                        .name("timing-search".into())
-                        .spawn(move || {
-                            let _ = tx.send(GaitPlanner::new(model, p));
-                        });
-                    match spawned {
-                        Ok(_) => searching = Some((rx, msg)),
+                    match spawn_timing_search(planner.model(), p) {
+                        Ok(rx) => searching = Some((rx, msg)),
                         Err(e) => ros.warn(&format!("walk_command refused: no thread for the timing search: {e}")),
                     }
                     // The commands after it wait for it, in order.
