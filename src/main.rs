@@ -694,7 +694,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             };
             let mut planner = GaitPlanner::new(model, params)?;
             if let Some(auto) = planner.auto_timing_summary() {
-                println!("durations left at 0 (auto), the fastest the checks allow: {auto}");
+                println!("{auto}");
             }
             if let Some(v) = twist {
                 plan::apply_twist(&mut planner, v)?;

@@ -228,20 +228,21 @@ impl GaitPlanner {
         self.auto_timing.as_ref().map(|(_, _, f)| f)
     }
 
-    /// The durations left at 0 (auto) and what bound each (`step 0.580 s (JointSpeed),
-    /// ...`), for a log or a summary; `None` when every duration was set.
+    /// The durations left at 0 (auto) and what bound each, as `biped plan` and the node log
+    /// it (`durations left at 0 (auto), the fastest the checks allow: step 0.580 s
+    /// (JointSpeed), ...`); `None` when every duration was set.
     pub fn auto_timing_summary(&self) -> Option<String> {
         let (given, _, f) = self.auto_timing.as_ref()?;
-        Some(
-            f.describe_only(
-                [
-                    given.shift_duration_s,
-                    given.step_duration_s,
-                    given.crouch_duration_s,
-                ]
-                .map(|d| d == 0.0),
-            ),
-        )
+        let auto = [
+            given.shift_duration_s,
+            given.step_duration_s,
+            given.crouch_duration_s,
+        ]
+        .map(|d| d == 0.0);
+        Some(format!(
+            "durations left at 0 (auto), the fastest the checks allow: {}",
+            f.describe_only(auto)
+        ))
     }
 
     /// True when [`Self::set_params`] with `params` would run the timing search (a duration

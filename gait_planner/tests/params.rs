@@ -45,6 +45,41 @@ fn auto_values_scale_with_the_robot() {
     );
 }
 
+/// The slow walk's parameter files the CLI and rclpy tests pass (and the golden
+/// trajectory's, at 20 Hz) are `GaitParams::slow` of their robots, to the millimetre they are
+/// written in, resolved to the same walk.
+#[test]
+fn the_slow_walk_files_are_the_slow_walk() {
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../tests/data/");
+    for (file, model, rate_hz) in [
+        ("gait_slow.yaml", default_model(), 100.0),
+        ("golden_params.yaml", default_model(), 20.0),
+        ("biped6_slow.yaml", biped6_model(), 100.0),
+    ] {
+        let read = GaitParams::from_ros_yaml_file(format!("{data}{file}")).unwrap();
+        let slow = GaitParams {
+            control_rate_hz: rate_hz,
+            ..GaitParams::slow(&model)
+        };
+        let (a, b) = (read.resolve(&model).unwrap(), slow.resolve(&model).unwrap());
+        assert!((a.step_length_m - b.step_length_m).abs() < 5e-4, "{file}");
+        assert!((a.hip_height_m - b.hip_height_m).abs() < 5e-4, "{file}");
+        assert_eq!(
+            GaitParams {
+                step_length_m: 0.0,
+                hip_height_m: 0.0,
+                ..read
+            },
+            GaitParams {
+                step_length_m: 0.0,
+                hip_height_m: 0.0,
+                ..slow
+            },
+            "{file}"
+        );
+    }
+}
+
 #[test]
 fn node_section_overrides_the_wildcard_and_other_nodes_are_ignored() {
     let yaml = r#"

@@ -77,25 +77,36 @@ fn main() -> ExitCode {
     }
 }
 
-/// The pause brake time in control ticks.
 /// What a timing search off the control loop answers: the checked planner, or why not.
 type SearchResult = Result<GaitPlanner, gait_planner::GaitError>;
 
-/// Runs [`GaitPlanner::new`] for `params` (its timing search, 0.3-1.2 s) on its own thread.
+/// Runs [`GaitPlanner::new`] for `params` (its timing search, 0.3-1.2 s) on its own thread,
+/// for the walk command `msg` that waits for it; `None` (logged) if no thread starts.
 fn spawn_timing_search(
+    ros: &RosNode,
     model: &BipedModel,
     params: GaitParams,
-) -> std::io::Result<std::sync::mpsc::Receiver<SearchResult>> {
+    msg: WalkCommand,
+) -> Option<(std::sync::mpsc::Receiver<SearchResult>, WalkCommand)> {
     let (tx, rx) = std::sync::mpsc::channel();
     let model = model.clone();
-    std::thread::Builder::new()
+    let spawned = std::thread::Builder::new()
         .name("timing-search".into())
         .spawn(move || {
             let _ = tx.send(GaitPlanner::new(model, params));
-        })?;
-    Ok(rx)
+        });
+    match spawned {
+        Ok(_) => Some((rx, msg)),
+        Err(e) => {
+            ros.warn(&format!(
+                "walk_command refused: no thread for the timing search: {e}"
+            ));
+            None
+        }
+    }
 }
 
+/// The pause brake time in control ticks.
 fn brake_ticks(c: &GaitParams) -> u32 {
     (c.pause_brake_time_s * c.control_rate_hz).round() as u32
 }
@@ -585,9 +596,7 @@ fn run() -> anyhow::Result<()> {
         ),
     );
     if let Some(auto) = planner.auto_timing_summary() {
-        ros.info(&format!(
-            "durations left at 0 (auto), the fastest the checks allow: {auto}"
-        ));
+        ros.info(&auto);
     }
 
     let mut commands = Commands {
@@ -661,45 +670,31 @@ fn run() -> anyhow::Result<()> {
             }
             // A walk command waiting for its parameters' timing search (on its own thread, so
             // that the loop keeps ticking): when found, it is taken as if it came now.
-            if let Some((rx, _)) = &searching {
+            if let Some((rx, msg)) = searching.take() {
                 match rx.try_recv() {
-                    Ok(found) => {
-                        let msg = searching.take().map(|(_, m)| m);
-                        match (found, msg) {
-                            (Ok(checked), Some(msg)) => {
-                                planner.remember_auto_timing(&checked);
-                                if let Some(auto) = checked.auto_timing_summary() {
-                                    ros.info(&format!(
-                                        "durations left at 0 (auto), the fastest the checks allow: {auto}"
-                                    ));
-                                }
-                                let (warnings, again) =
-                                    commands.walk_command(&mut planner, &msg, &mut params);
-                                for w in warnings {
-                                    ros.warn(&w);
-                                }
-                                // Parameters changed meanwhile (a parameter set): search
-                                // again for the command on the new ones.
-                                if let Some(p) = again {
-                                    match spawn_timing_search(planner.model(), p) {
-                                        Ok(rx) => searching = Some((rx, msg)),
-                                        Err(e) => ros.warn(&format!(
-                                            "walk_command refused: no thread for the timing search: {e}"
-                                        )),
-                                    }
-                                }
-                            }
-                            (Err(e), Some(msg)) => ros.warn(&format!(
-                                "walk_command refused: step_length = {}, step_duration = {}: {e}",
-                                msg.step_length, msg.step_duration
-                            )),
-                            (_, None) => {}
-                        }
-                    }
-                    Err(std::sync::mpsc::TryRecvError::Empty) => {}
+                    Err(std::sync::mpsc::TryRecvError::Empty) => searching = Some((rx, msg)),
                     Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                        searching = None;
                         ros.warn("walk_command refused: its timing search stopped");
+                    }
+                    Ok(Err(e)) => ros.warn(&format!(
+                        "walk_command refused: step_length = {}, step_duration = {}: {e}",
+                        msg.step_length, msg.step_duration
+                    )),
+                    Ok(Ok(checked)) => {
+                        planner.remember_auto_timing(&checked);
+                        if let Some(auto) = checked.auto_timing_summary() {
+                            ros.info(&auto);
+                        }
+                        let (warnings, again) =
+                            commands.walk_command(&mut planner, &msg, &mut params);
+                        for w in warnings {
+                            ros.warn(&w);
+                        }
+                        // Parameters changed meanwhile (a parameter set): search again for
+                        // the command on the new ones.
+                        if let Some(p) = again {
+                            searching = spawn_timing_search(&ros, planner.model(), p, msg);
+                        }
                     }
                 }
             }
@@ -724,12 +719,8 @@ fn run() -> anyhow::Result<()> {
                     ros.info(
                         "walk_command: new parameters with durations left at 0 (auto): searching their timing; the walk starts when it is found",
                     );
-                    match spawn_timing_search(planner.model(), p) {
-                        Ok(rx) => searching = Some((rx, msg)),
-                        Err(e) => ros.warn(&format!("walk_command refused: no thread for the timing search: {e}")),
-                    }
-                    // The commands after it wait for it, in order.
-                    break;
+                    // The commands after it wait for it, in order (the loop's condition).
+                    searching = spawn_timing_search(&ros, planner.model(), p, msg);
                 }
             }
             while let Ok(Some((h, _))) = bridge_holding.take() {
