@@ -34,7 +34,7 @@ use std::path::Path;
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{
     AnkleTargets, BoolMsg, Clock, ColorRGBA, CompressedImage, DiagnosticArray, DiagnosticStatus,
-    Duration, GaitPhase, Header, JointState, KeyValue, LifecycleState, Marker, MarkerArray,
+    Duration, GaitPhase, Header, Imu, JointState, KeyValue, LifecycleState, Marker, MarkerArray,
     MeshFile, Odometry, Point, Point32, PointStamped, Polygon, PolygonStamped, Pose, PoseStamped,
     PoseWithCovariance, Quaternion, StringMsg, TFMessage, Time, Transform, TransformStamped,
     Transition, TransitionDescription, TransitionEvent, Twist, TwistWithCovariance, UVCoordinate,
@@ -171,6 +171,7 @@ fn registry() -> Vec<Entry> {
         TwistWithCovariance,
         Odometry,
         JointState,
+        Imu,
         Clock,
         StringMsg,
         GaitPhase,

@@ -431,6 +431,41 @@ ros_message!(
     ]
 );
 
+/// sensor_msgs/msg/Imu: orientation, angular velocity and linear acceleration (specific
+/// force: gravity included, +9.81 m/s² up when still) of `header.frame_id`, in that frame.
+/// The covariances are row-major 3 x 3 (x, y, z); all 0 means unknown (REP-145), element 0
+/// at -1 that the quantity is not given.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Imu {
+    /// Stamp and the sensor's frame.
+    pub header: Header,
+    /// The sensor frame's orientation in the world (a fixed frame, z up).
+    pub orientation: Quaternion,
+    /// Covariance of the orientation (rad²).
+    pub orientation_covariance: [f64; 9],
+    /// Angular velocity in the sensor frame (rad/s).
+    pub angular_velocity: Vector3,
+    /// Covariance of the angular velocity ((rad/s)²).
+    pub angular_velocity_covariance: [f64; 9],
+    /// Linear acceleration less gravity in the sensor frame (m/s²).
+    pub linear_acceleration: Vector3,
+    /// Covariance of the linear acceleration ((m/s²)²).
+    pub linear_acceleration_covariance: [f64; 9],
+}
+ros_message!(
+    Imu,
+    "sensor_msgs",
+    [
+        ("header", "std_msgs/Header"),
+        ("orientation", "geometry_msgs/Quaternion"),
+        ("orientation_covariance", "double[9]"),
+        ("angular_velocity", "geometry_msgs/Vector3"),
+        ("angular_velocity_covariance", "double[9]"),
+        ("linear_acceleration", "geometry_msgs/Vector3"),
+        ("linear_acceleration_covariance", "double[9]"),
+    ]
+);
+
 /// rosgraph_msgs/msg/Clock.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Clock {

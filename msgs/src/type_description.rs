@@ -132,6 +132,7 @@ pub fn known_types() -> &'static [KnownType] {
             TwistWithCovariance,
             Odometry,
             JointState,
+            Imu,
             Clock,
             StringMsg,
             BoolMsg,

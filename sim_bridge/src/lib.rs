@@ -42,6 +42,6 @@ pub use error::SimError;
 pub use ik_solver::{FootLoad, GRAVITY_M_S2};
 pub use mjcf::{JointMap, MappedJoint};
 pub use sim::{
-    BODY_CONTACT_FRACTION, COP_MIN_FRACTION, ContactReading, Fall, FallReason, LOADED_FRACTION,
-    Sim, tilt_rad,
+    BODY_CONTACT_FRACTION, COP_MIN_FRACTION, ContactReading, Fall, FallReason, ImuReading,
+    LOADED_FRACTION, Sim, tilt_rad,
 };

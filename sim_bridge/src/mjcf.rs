@@ -445,6 +445,7 @@ pub(crate) fn load(
         dof_adr,
         actuator,
         free_qpos_adr: model.jnt_qposadr()[free] as usize,
+        free_dof_adr: model.jnt_dofadr()[free] as usize,
         base_body,
         foot_bodies,
         sole_geoms,

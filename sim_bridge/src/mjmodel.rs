@@ -48,6 +48,9 @@ pub(crate) struct Layout {
     pub actuator: Vec<usize>,
     /// qpos address of the free joint (position, then quaternion w x y z).
     pub free_qpos_adr: usize,
+    /// qvel address of the free joint (linear velocity in the world, then angular velocity
+    /// in the base's own frame).
+    pub free_dof_adr: usize,
     /// The root link's body.
     pub base_body: usize,
     /// The foot bodies, `[left, right]`.
@@ -229,6 +232,7 @@ pub(crate) fn build(
         dof_adr,
         actuator,
         free_qpos_adr: model.jnt_qposadr()[free] as usize,
+        free_dof_adr: model.jnt_dofadr()[free] as usize,
         base_body,
         foot_bodies,
         sole_geoms,

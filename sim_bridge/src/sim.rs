@@ -22,6 +22,18 @@ pub const COP_MIN_FRACTION: f64 = 0.1;
 /// More than this share of the weight on anything but the soles is a fall.
 pub const BODY_CONTACT_FRACTION: f64 = 0.05;
 
+/// An inertial measurement unit at the base link's origin ([`Sim::imu`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImuReading {
+    /// The base's orientation in the world.
+    pub orientation: UnitQuaternion<f64>,
+    /// The base's angular velocity in its own frame (rad/s): what a gyroscope reads.
+    pub angular_velocity_rad_s: Vector3<f64>,
+    /// Acceleration less gravity in the base's frame (m/s²): what an accelerometer reads
+    /// (+9.81 along the base's z standing level, 0 falling freely).
+    pub specific_force_m_s2: Vector3<f64>,
+}
+
 /// Angle between a pose's z axis and the world's (rad): the base's tilt from upright.
 pub fn tilt_rad(pose: &Isometry3<f64>) -> f64 {
     let z = pose.rotation * Vector3::z();
@@ -474,6 +486,24 @@ impl Sim {
             Translation3::new(q[0], q[1], q[2]),
             UnitQuaternion::from_quaternion(Quaternion::new(q[3], q[4], q[5], q[6])),
         )
+    }
+
+    /// What an inertial measurement unit fixed at the base link's origin, aligned with the
+    /// base, reads: its orientation in the world, the base's angular velocity and the
+    /// specific force (acceleration less gravity, what an accelerometer measures), both in
+    /// the base's frame. Exact (no noise, no bias): the simulator's ground truth, with the
+    /// acceleration of the last physics step.
+    pub fn imu(&self) -> ImuReading {
+        let orientation = self.base_pose().rotation;
+        let v = &self.data.qvel()[self.layout.free_dof_adr..self.layout.free_dof_adr + 6];
+        let a = &self.data.qacc()[self.layout.free_dof_adr..self.layout.free_dof_adr + 3];
+        let accel_world = Vector3::new(a[0], a[1], a[2]);
+        let gravity = Vector3::from(self.data.model().opt().gravity);
+        ImuReading {
+            orientation,
+            angular_velocity_rad_s: Vector3::new(v[3], v[4], v[5]),
+            specific_force_m_s2: orientation.inverse_transform_vector(&(accel_world - gravity)),
+        }
     }
 
     /// Angle between the base's z axis and the world's (rad).

@@ -138,3 +138,61 @@ fn broken_robots_give_errors() {
     let e = SimConfig::from_yaml_str("timestep_s: 0.5").unwrap_err();
     assert!(e.to_string().contains("timestep_s"), "{e}");
 }
+
+/// The base's IMU against what it must read by hand: standing still, gravity's 9.81 m/s²
+/// up the base's z and no rotation; dropped from 1 m tilted by 0.4 rad about x, nothing at
+/// all from the accelerometer (free fall) whatever the tilt; toppling over from a tilted
+/// stance, the gyroscope's rate is the rate at which the base's orientation turns (taken
+/// from the base pose, tick to tick).
+#[test]
+fn the_imu_reads_gravity_standing_nothing_falling_and_the_turn_of_the_base() {
+    let mut sim = new_sim();
+    let zeros = vec![0.0; sim.joint_names().len()];
+    let g = 9.81; // MuJoCo's default gravity, which the built-in robot's model keeps.
+    sim.stand(&zeros).unwrap();
+    sim.step(1.0).unwrap();
+    let imu = sim.imu();
+    eprintln!("standing: {imu:?}");
+    let f = imu.specific_force_m_s2;
+    assert!(f.x.abs() < 0.05 && f.y.abs() < 0.05, "standing: {f}");
+    assert!((f.z - g).abs() < 0.05, "standing: {f}");
+    assert!(
+        imu.angular_velocity_rad_s.norm() < 0.01,
+        "standing: {imu:?}"
+    );
+    assert!(imu.orientation.angle() < 0.01);
+
+    let tilt = nalgebra::UnitQuaternion::from_euler_angles(0.4, 0.0, 0.0);
+    let high = nalgebra::Isometry3::from_parts(nalgebra::Translation3::new(0.0, 0.0, 1.0), tilt);
+    sim.reset(&high, &zeros).unwrap();
+    sim.step(0.05).unwrap();
+    let imu = sim.imu();
+    eprintln!("falling: {imu:?}");
+    assert!(imu.specific_force_m_s2.norm() < 1e-6, "falling: {imu:?}");
+    assert!(imu.orientation.angle_to(&tilt) < 1e-6);
+
+    // Standing on the sole edges, tilted 0.3 rad about x: the robot topples sideways.
+    sim.stand(&zeros).unwrap();
+    let start = sim.base_pose();
+    let tipped = nalgebra::Isometry3::from_parts(
+        nalgebra::Translation3::new(0.0, 0.0, start.translation.z + 0.05),
+        nalgebra::UnitQuaternion::from_euler_angles(0.3, 0.0, 0.0),
+    );
+    sim.reset(&tipped, &zeros).unwrap();
+    sim.step(0.3).unwrap();
+    let h = 0.002;
+    let before = sim.base_pose().rotation;
+    let w0 = sim.imu().angular_velocity_rad_s;
+    sim.step(h).unwrap();
+    let after = sim.base_pose().rotation;
+    let w1 = sim.imu().angular_velocity_rad_s;
+    // The turn over h in the base's own frame: before⁻¹·after = exp(ω h).
+    let turn = (before.inverse() * after).scaled_axis() / h;
+    let w = (w0 + w1) / 2.0;
+    eprintln!("toppling: gyro {w}, from the poses {turn}");
+    assert!(w.norm() > 0.2, "not toppling: {w}");
+    assert!(
+        (w - turn).norm() < 0.02 * w.norm(),
+        "gyro {w}, poses {turn}"
+    );
+}
