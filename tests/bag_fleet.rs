@@ -422,6 +422,7 @@ fn a_walks_bag_of_every_fleet_topic_replays_into_rclpy_with_each_type_intact() {
         "nav_msgs/msg/Odometry",
         "std_msgs/msg/String",
         "sensor_msgs/msg/JointState",
+        "sensor_msgs/msg/Imu",
         "geometry_msgs/msg/PolygonStamped",
         "rcl_interfaces/msg/Log",
         "biped_msgs/msg/GaitPhase",

@@ -630,6 +630,43 @@ fn an_rclpy_peer_watches_and_walks_the_simulated_robot_in_real_time() {
         sizes.iter().any(|&s| s > 4),
         "double-support polygons: {sizes:?}"
     );
+    // imu/data (sensor_msgs/Imu) in the base link's frame: standing before the walk, gravity
+    // up the base's z, level, still; the walk turns the base.
+    assert!(v["imu_count"].as_u64().unwrap() > 500, "{}", v["imu_count"]);
+    assert_eq!(v["imu_frames"], serde_json::json!(["base_link"]));
+    let standing = v["imu_standing"].as_array().unwrap();
+    assert!(
+        standing.len() >= 20,
+        "{} IMU messages standing",
+        standing.len()
+    );
+    let f64s = |j: &Value| -> Vec<f64> {
+        j.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    for m in standing {
+        let (a, w, q) = (f64s(&m["a"]), f64s(&m["w"]), f64s(&m["q"]));
+        assert!(
+            a[0].abs() < 0.3 && a[1].abs() < 0.3 && (a[2] - 9.81).abs() < 0.3,
+            "standing, the accelerometer reads {a:?}"
+        );
+        assert!(
+            w.iter().all(|x| x.abs() < 0.05),
+            "standing, the gyro reads {w:?}"
+        );
+        assert!(
+            q[0].abs() < 0.02 && q[1].abs() < 0.02,
+            "standing, tilted: {q:?}"
+        );
+    }
+    let rate = v["imu_walking_max_rate"].as_f64().unwrap();
+    assert!(
+        rate > 0.05,
+        "walking, the gyro never read more than {rate} rad/s"
+    );
 }
 
 /// A teleop over /cmd_vel drives the six-joint robot (hip yaw) in the simulator at real

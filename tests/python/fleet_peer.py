@@ -761,6 +761,7 @@ def scenario_sim(bin_dir, params):
     plain rclpy node (no use_sim_time), as a user with RViz or Foxglove would."""
     from geometry_msgs.msg import PointStamped, PolygonStamped, PoseStamped
     from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import Imu
 
     biped = os.path.join(bin_dir, "biped")
     log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test") + "-sim"
@@ -782,14 +783,28 @@ def scenario_sim(bin_dir, params):
         {"stamp": stamp_ns(m.header), "x": m.point.x, "y": m.point.y}), qos)
     n.create_subscription(PolygonStamped, "/sim/support_polygon", lambda m: poly.append(
         {"stamp": stamp_ns(m.header), "points": len(m.polygon.points)}), qos)
+    imu = []
+    n.create_subscription(Imu, "/imu/data", lambda m: imu.append(
+        {"frame": m.header.frame_id,
+         "a": [m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z],
+         "w": [m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z],
+         "q": [m.orientation.x, m.orientation.y, m.orientation.z, m.orientation.w]}), qos)
     global NODES
     NODES = NODES + ["sim_bridge"]
     out = {"nodes_seen": peer.wait_for_nodes(60.0), "node_names": peer.node_names()}
     out["flowing"] = peer.spin(60.0, lambda: len(peer.states) > 20 and len(clock) > 20)
     out["matched"] = peer.wait_for_subscribers(peer.walk_pub, 20.0)
+    # A second and a half standing (real time) before the walk: the IMU of a robot at rest.
+    peer.spin(1.5)
     walk_from = len(clock)
+    out["imu_standing"] = imu[-50:]
+    imu_from = len(imu)
     peer.walk(2)
     out["walked"] = peer.spin(90.0, peer.idle_after_walking)
+    out["imu_count"] = len(imu)
+    out["imu_frames"] = sorted({m["frame"] for m in imu})
+    out["imu_walking_max_rate"] = max((sum(x * x for x in m["w"]) ** 0.5 for m in imu[imu_from:]),
+                                      default=0.0)
     peer.spin(1.0)
     out["clock"] = clock[walk_from:]
     out["base"] = base

@@ -12,7 +12,10 @@
 //!   truth again as the TF edge `world_frame` → `<base link>_gt` on `/tf`
 //!   (tf2_msgs/msg/TFMessage: beside the fleet's `odom` → base link, to compare),
 //!   `sim/markers` (visualization_msgs/msg/MarkerArray: the measured centre of pressure and
-//!   support polygon, for RViz and Foxglove), and
+//!   support polygon, for RViz and Foxglove), `imu/data` (sensor_msgs/msg/Imu: what an IMU
+//!   at the base link's origin reads, in the base link's frame: orientation, angular
+//!   velocity, specific force, +9.81 m/s² up standing still; exact, covariances 0 =
+//!   unknown, REP-145), and
 //!   `/clock` (rosgraph_msgs/msg/Clock, last);
 //! - reports a fall once on `sim/fall` (std_msgs/msg/String, the reason) and `/rosout`.
 //!
@@ -41,7 +44,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use biped_msgs::msg::{
-    Clock, ColorRGBA, Header, JointState, Marker, MarkerArray, Point, Point32, PointStamped,
+    Clock, ColorRGBA, Header, Imu, JointState, Marker, MarkerArray, Point, Point32, PointStamped,
     Polygon, PolygonStamped, Pose, PoseStamped, StringMsg, TFMessage, Time, Transform,
     TransformStamped,
 };
@@ -140,7 +143,10 @@ struct Outputs {
     clock: Publisher<Clock>,
     tf: Publisher<TFMessage>,
     markers: Publisher<MarkerArray>,
+    imu: Publisher<Imu>,
     world_frame: String,
+    /// The IMU's frame: the base link.
+    base_frame: String,
     /// The ground truth's child frame on `/tf`: the base link's name + `_gt`.
     ground_truth_frame: String,
 }
@@ -178,6 +184,29 @@ impl Outputs {
                 .publish(PoseStamped {
                     header: header(&self.world_frame),
                     pose: Pose::from(&base),
+                })
+                .map_err(|e| e.to_string()),
+        );
+        let imu = sim.imu();
+        let v = |v: nalgebra::Vector3<f64>| biped_msgs::msg::Vector3 {
+            x: v.x,
+            y: v.y,
+            z: v.z,
+        };
+        check(
+            "imu/data",
+            self.imu
+                .publish(Imu {
+                    header: header(&self.base_frame),
+                    orientation: Pose::from(&nalgebra::Isometry3::from_parts(
+                        nalgebra::Translation3::identity(),
+                        imu.orientation,
+                    ))
+                    .orientation,
+                    angular_velocity: v(imu.angular_velocity_rad_s),
+                    linear_acceleration: v(imu.specific_force_m_s2),
+                    // Ground truth: no error, but no covariance claimed either (0: unknown).
+                    ..Imu::default()
                 })
                 .map_err(|e| e.to_string()),
         );
@@ -317,7 +346,8 @@ fn run() -> anyhow::Result<()> {
     }
     let names: Vec<String> = sim.joint_names().to_vec();
     let robot = sim.biped().robot();
-    let ground_truth_frame = format!("{}_gt", robot.links()[robot.root()].name);
+    let base_frame = robot.links()[robot.root()].name.clone();
+    let ground_truth_frame = format!("{base_frame}_gt");
     sim.stand(&vec![0.0; names.len()])?;
 
     let mut declared: BTreeMap<String, ParameterValue> = BTreeMap::from([
@@ -369,7 +399,9 @@ fn run() -> anyhow::Result<()> {
         clock: ros.publisher::<Clock>("/clock")?,
         tf: ros.publisher::<TFMessage>("/tf")?,
         markers: ros.publisher::<MarkerArray>("sim/markers")?,
+        imu: ros.publisher::<Imu>("imu/data")?,
         world_frame,
+        base_frame,
         ground_truth_frame,
     };
     let executor = ros.executor()?;
