@@ -231,4 +231,73 @@ impl BipedModel {
             .map(|t| t / kp_nm_per_rad)
             .collect())
     }
+
+    /// Gyro damping: offsets (rad, one per joint in [`crate::RobotModel::dof_names`]
+    /// order) that make position servos damp the body's rotation as if each joint of a leg
+    /// standing on the floor had `gain_s` x its stiffness more damping against it:
+    /// `gain_s · (a_j · ω)` for every joint `j` of those legs, `a_j` its axis and `ω` the
+    /// base's angular velocity (`body_rate_rad_s`, what a gyroscope on the base reads) less
+    /// its part about the base's z axis, both in the base frame; 0 for the other joints.
+    /// Only the roll and pitch of the body are damped: turning about the vertical is the
+    /// walk's own (a turn in place), not to be resisted. Why: a servo of stiffness kp aimed Δ
+    /// further gives kp·Δ more torque, and with the foot fixed a joint turns the body above
+    /// it by minus its own rotation, so aiming `gain_s · (a_j · ω)` further gives the torque
+    /// `kp · gain_s · (a_j · ω)` against the body's turn: the damping `kp · gain_s`
+    /// (N·m·s/rad) a servo's own derivative gain would give. The legs on the floor are read
+    /// from the pose as [`Self::sag_compensation_rad`] reads them (both in double support).
+    ///
+    /// ```
+    /// use ik_solver::{BipedModel, DEFAULT_URDF};
+    /// use nalgebra::Vector3;
+    /// let model = BipedModel::from_urdf_str(DEFAULT_URDF, None).unwrap();
+    /// let q = vec![0.0; model.robot().dof_count()];
+    /// // Standing on both feet, rolling at 0.5 rad/s: the roll joints (axes along x) of both
+    /// // legs aim 0.01 s x 0.5 rad/s further, the pitch joints not at all.
+    /// let d = model.gyro_damping_rad(&q, &Vector3::new(0.5, 0.0, 0.0), 0.01).unwrap();
+    /// let r = |n: &str| d[model.robot().dof_index(n).unwrap()];
+    /// assert!((r("l_hip_roll").abs() - 0.005).abs() < 1e-12);
+    /// assert!((r("r_ankle_roll").abs() - 0.005).abs() < 1e-12);
+    /// assert_eq!(r("l_knee"), 0.0);
+    /// ```
+    pub fn gyro_damping_rad(
+        &self,
+        joints_rad: &[f64],
+        body_rate_rad_s: &Vector3<f64>,
+        gain_s: f64,
+    ) -> Result<Vec<f64>, IkError> {
+        if !(gain_s.is_finite() && gain_s >= 0.0) {
+            return Err(IkError::BadParameter {
+                name: "gain_s",
+                value: gain_s,
+                why: "a gyro damping gain must be a finite number of seconds, 0 or more",
+            });
+        }
+        if let Some(w) = body_rate_rad_s.iter().find(|w| !w.is_finite()) {
+            return Err(IkError::BadParameter {
+                name: "body_rate_rad_s",
+                value: *w,
+                why: "the base's angular velocity must be finite",
+            });
+        }
+        let w = Vector3::new(body_rate_rad_s.x, body_rate_rad_s.y, 0.0);
+        let robot = self.robot();
+        let poses = robot.link_poses(&Isometry3::identity(), joints_rad)?;
+        let standing: &[Side] = match self.stance_of_pose(&poses) {
+            Stance::Double => &[Side::Left, Side::Right],
+            Stance::Single(Side::Left) => &[Side::Left],
+            Stance::Single(Side::Right) => &[Side::Right],
+        };
+        let mut out = vec![0.0; robot.dof_count()];
+        for &side in standing {
+            for j in self.leg(side).joints.iter().flatten() {
+                let joint = &robot.joints()[j.joint];
+                if joint.kind == JointKind::Prismatic {
+                    continue;
+                }
+                let axis = robot.joint_frame(&poses, j.joint).rotation * joint.axis.into_inner();
+                out[j.dof] = gain_s * axis.dot(&w);
+            }
+        }
+        Ok(out)
+    }
 }

@@ -4,7 +4,7 @@ use std::collections::{HashMap, HashSet};
 use std::fmt;
 
 use crate::backend::{Backend, BackendError, Lifecycle, Reading};
-use crate::compensation::SagCompensation;
+use crate::compensation::{GYRO_MAX_AGE_S, GyroDamping, SagCompensation};
 use crate::limits::JointSpec;
 use crate::motion::{Limiter, MotionLimit};
 
@@ -200,6 +200,9 @@ pub enum Event {
     BackendFailed(BackendError),
     /// Sag compensation could not be computed; the uncompensated output was written.
     CompensationFailed(String),
+    /// Gyro damping stopped (`false`: no body rate fresher than [`GYRO_MAX_AGE_S`]) or
+    /// started again (`true`).
+    GyroDamping(bool),
     /// A retry to configure and activate the backend failed; the next one is due later.
     RetryFailed {
         /// Why.
@@ -276,6 +279,11 @@ impl fmt::Display for Event {
             Event::CompensationFailed(why) => {
                 write!(f, "sag compensation skipped this tick: {why}")
             }
+            Event::GyroDamping(true) => write!(f, "gyro damping on: the body rate is coming"),
+            Event::GyroDamping(false) => write!(
+                f,
+                "gyro damping off: no body rate (imu/data) for {GYRO_MAX_AGE_S} s"
+            ),
             Event::RetryFailed { error, next_in_s } => {
                 write!(
                     f,
@@ -366,6 +374,8 @@ pub struct JointBridge<B: Backend> {
     said_ignored: bool,
     reported_unknown: HashSet<String>,
     compensation: Option<SagCompensation>,
+    /// Gyro damping, and whether it damped at the last tick.
+    gyro: Option<(GyroDamping, bool)>,
     /// What was last sent: the output, compensated and clamped.
     written: Vec<f64>,
     ramp: Option<Ramp>,
@@ -415,6 +425,7 @@ impl<B: Backend> JointBridge<B> {
             said_ignored: false,
             reported_unknown: HashSet::new(),
             compensation: None,
+            gyro: None,
             ramp: None,
             follow: None,
             retry_delay_s: config.reconnect.map_or(0.0, |b| b.first_s),
@@ -427,6 +438,21 @@ impl<B: Backend> JointBridge<B> {
     pub fn with_sag_compensation(mut self, compensation: SagCompensation) -> Self {
         self.compensation = Some(compensation);
         self
+    }
+
+    /// Adds gyro damping (see [`GyroDamping`]), fed by [`Self::set_body_rate`]: what is
+    /// written is also offset against the body's rotation, while the rate is fresh.
+    pub fn with_gyro_damping(mut self, damping: GyroDamping) -> Self {
+        self.gyro = Some((damping, false));
+        self
+    }
+
+    /// The body's angular velocity (rad/s, base frame) measured at `t_s` (the bridge's
+    /// time), for the gyro damping; ignored without it.
+    pub fn set_body_rate(&mut self, t_s: f64, rate_rad_s: nalgebra::Vector3<f64>) {
+        if let Some((g, _)) = &mut self.gyro {
+            g.set_body_rate(t_s, rate_rad_s);
+        }
     }
 
     /// The positions last written to the backend (rad): the goal plus its sag offset,
@@ -885,6 +911,19 @@ impl<B: Backend> JointBridge<B> {
             {
                 aim.copy_from_slice(&goal);
                 events.push(Event::CompensationFailed(why));
+            }
+            if let Some((g, damping)) = &mut self.gyro {
+                let on = match g.add_to(t_s, &goal, &mut aim) {
+                    Ok(on) => on,
+                    Err(why) => {
+                        events.push(Event::CompensationFailed(why));
+                        false
+                    }
+                };
+                if on != *damping {
+                    *damping = on;
+                    events.push(Event::GyroDamping(on));
+                }
             }
             for (a, spec) in aim.iter_mut().zip(&self.joints) {
                 *a = spec.clamp(*a);

@@ -28,6 +28,6 @@ pub use bridge::{
     Backoff, BridgeConfig, Event, FOLLOW_SILENCE_S, FollowEnd, JointBridge, MAX_UNKNOWN_REPORTED,
     Operator, TimeoutAction, TorqueError,
 };
-pub use compensation::{CompensationError, SagCompensation};
+pub use compensation::{CompensationError, GYRO_MAX_AGE_S, GyroDamping, SagCompensation};
 pub use limits::JointSpec;
 pub use mock::MockBackend;

@@ -1306,3 +1306,77 @@ fn without_a_follow_time_an_estop_or_a_deactivate_holds_at_once() {
         assert_ignored(&mut b, &log, 51, by, 0.25);
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Gyro damping
+// ---------------------------------------------------------------------------------------------
+
+/// The default robot standing at zero angles, servos of 30 N·m/rad, 0.6 N·m·s/rad of gyro
+/// damping: 0.02 s of offset per rad/s. Rolling at 0.5 rad/s and pitching at -0.2 rad/s
+/// (turning at 0.3 rad/s, which is left alone), every roll joint of both legs aims 0.01 rad
+/// further, every pitch joint -0.004 rad (the URDF's axes are +x and +y); arms not at all.
+/// Without a body rate for more than 0.05 s the offsets go (said once), and come back with it.
+#[test]
+fn gyro_damping_offsets_the_standing_legs_while_the_body_rate_is_fresh() {
+    let model = ik_solver::BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None).unwrap();
+    let joints = robot_joints();
+    let all: Vec<String> = joints.iter().map(|j| j.name.clone()).collect();
+    let zeros = vec![0.0; joints.len()];
+    let gyro = joint_bridge::GyroDamping::new(model, 0.6, 30.0, &joints).unwrap();
+    assert!(close(gyro.gain_s(), 0.02));
+    let mut b =
+        JointBridge::new(MockBackend::default(), joints.clone(), patient()).with_gyro_damping(gyro);
+    b.start().unwrap();
+    let rate = nalgebra::Vector3::new(0.5, -0.2, 0.3);
+    let mut said = Vec::new();
+    for i in 0..=50 {
+        b.command(t(i), &all, &zeros);
+        b.set_body_rate(t(i), rate);
+        // A NaN from a broken IMU is not taken: the last good rate stands.
+        b.set_body_rate(t(i), nalgebra::Vector3::new(f64::NAN, 0.0, 0.0));
+        said.extend(b.tick(t(i)).1);
+    }
+    let want = |name: &str| match name {
+        "l_hip_roll" | "l_ankle_roll" | "r_hip_roll" | "r_ankle_roll" => 0.01,
+        "l_hip_pitch" | "l_knee" | "l_ankle_pitch" | "r_hip_pitch" | "r_knee" | "r_ankle_pitch" => {
+            -0.004
+        }
+        _ => 0.0,
+    };
+    for (w, j) in b.written_rad().iter().zip(&joints) {
+        assert!(close(*w, want(&j.name)), "{}: wrote {w}", j.name);
+    }
+    assert_eq!(said, vec![Event::GyroDamping(true)]);
+    // The IMU goes quiet after t(50): the rate is fresh up to t(55), gone at t(56).
+    said.clear();
+    for i in 51..=100 {
+        b.command(t(i), &all, &zeros);
+        said.extend(b.tick(t(i)).1);
+        if i == 55 {
+            assert!(b.written_rad().iter().any(|w| *w != 0.0), "off too soon");
+        }
+    }
+    assert!(
+        b.written_rad().iter().all(|w| *w == 0.0),
+        "{:?}",
+        b.written_rad()
+    );
+    assert_eq!(said, vec![Event::GyroDamping(false)]);
+    b.set_body_rate(t(101), rate);
+    b.command(t(101), &all, &zeros);
+    assert_eq!(b.tick(t(101)).1, vec![Event::GyroDamping(true)]);
+}
+
+#[test]
+fn gyro_damping_needs_a_stiffness_and_a_damping() {
+    let model = ik_solver::BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None).unwrap();
+    let joints = robot_joints();
+    let e = joint_bridge::GyroDamping::new(model.clone(), 0.6, 0.0, &joints)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("stiffness 0"), "{e}");
+    let e = joint_bridge::GyroDamping::new(model, f64::NAN, 30.0, &joints)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("gyro damping: NaN"), "{e}");
+}

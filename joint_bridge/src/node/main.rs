@@ -49,13 +49,15 @@ use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use biped_msgs::msg::{BoolMsg, DiagnosticArray, DiagnosticStatus, Header, JointState, KeyValue};
+use biped_msgs::msg::{
+    BoolMsg, DiagnosticArray, DiagnosticStatus, Header, Imu, JointState, KeyValue,
+};
 use biped_msgs::srv::{SetBool, SetBoolRequest, Trigger, TriggerRequest, TriggerResponse};
 use ik_solver::BipedModel;
 use joint_bridge::managed::ManagedState;
 use joint_bridge::{
-    Backend, Backoff, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle, MockBackend,
-    Operator, SagCompensation, TimeoutAction,
+    Backend, Backoff, BridgeConfig, Event, GyroDamping, JointBridge, JointSpec, Lifecycle,
+    MockBackend, Operator, SagCompensation, TimeoutAction,
 };
 use node_runtime::{NodeSetup, RosNode, Tick, TickSource};
 use ros2_client::ParameterValue;
@@ -70,7 +72,7 @@ use crate::sim_link::{SimLink, SimLinkHandle};
 /// a few ticks for `~/holding` to reach it.
 const ESTOP_FOLLOW_S: f64 = 0.4;
 
-const PARAMS: [&str; 15] = [
+const PARAMS: [&str; 16] = [
     "autostart",
     "robot_description_file",
     "leg_map_file",
@@ -79,6 +81,7 @@ const PARAMS: [&str; 15] = [
     "watchdog_timeout_s",
     "watchdog_action",
     "sag_compensation_kp",
+    "gyro_damping_nm_s_per_rad",
     "sim_wait_s",
     "lockstep_wait_s",
     "start_ramp_s",
@@ -120,6 +123,7 @@ fn run() -> anyhow::Result<()> {
     let timeout_s = setup.f64_param("watchdog_timeout_s", 0.25)?;
     let action_name = setup.str_param("watchdog_action", "hold")?;
     let kp = setup.f64_param("sag_compensation_kp", 0.0)?;
+    let gyro_damping = setup.f64_param("gyro_damping_nm_s_per_rad", 0.0)?;
     let sim_wait_s = setup.f64_param("sim_wait_s", 10.0)?;
     let lockstep_wait_s = setup.f64_param("lockstep_wait_s", 0.5)?;
     if !(1.0..=1000.0).contains(&rate_hz) {
@@ -131,6 +135,16 @@ fn run() -> anyhow::Result<()> {
     if !(kp.is_finite() && (0.0..=1e4).contains(&kp)) {
         anyhow::bail!(
             "parameter `sag_compensation_kp` = {kp} is out of range [0, 10000] N·m/rad (0 = off)"
+        );
+    }
+    if !(gyro_damping.is_finite() && (0.0..=100.0).contains(&gyro_damping)) {
+        anyhow::bail!(
+            "parameter `gyro_damping_nm_s_per_rad` = {gyro_damping} is out of range [0, 100] N·m·s/rad (0 = off)"
+        );
+    }
+    if gyro_damping > 0.0 && kp == 0.0 {
+        anyhow::bail!(
+            "parameter `gyro_damping_nm_s_per_rad` = {gyro_damping} needs the servos' stiffness: set `sag_compensation_kp`"
         );
     }
     for (name, v) in [
@@ -227,6 +241,10 @@ fn run() -> anyhow::Result<()> {
             "sag_compensation_kp".to_string(),
             ParameterValue::Double(kp),
         ),
+        (
+            "gyro_damping_nm_s_per_rad".to_string(),
+            ParameterValue::Double(gyro_damping),
+        ),
         ("sim_wait_s".to_string(), ParameterValue::Double(sim_wait_s)),
         (
             "lockstep_wait_s".to_string(),
@@ -316,6 +334,14 @@ fn run() -> anyhow::Result<()> {
             estop_follow_s,
         },
     );
+    let base_frame = model.robot().links()[model.robot().root()].name.clone();
+    let imu = if gyro_damping > 0.0 {
+        bridge =
+            bridge.with_gyro_damping(GyroDamping::new(model.clone(), gyro_damping, kp, &joints)?);
+        Some(ros.subscription::<Imu>("imu/data")?)
+    } else {
+        None
+    };
     if kp > 0.0 {
         bridge = bridge.with_sag_compensation(SagCompensation::new(model, kp, &joints)?);
     }
@@ -341,10 +367,12 @@ fn run() -> anyhow::Result<()> {
             Err(e) => anyhow::bail!("backend {backend_name}: {e}"),
         }
     }
-    let compensation = if kp > 0.0 {
-        format!("sag compensation for {kp} N·m/rad servos")
-    } else {
-        "no sag compensation".to_string()
+    let compensation = match (kp > 0.0, gyro_damping > 0.0) {
+        (true, true) => format!(
+            "sag compensation for {kp} N·m/rad servos, gyro damping {gyro_damping} N·m·s/rad from imu/data"
+        ),
+        (true, false) => format!("sag compensation for {kp} N·m/rad servos"),
+        _ => "no sag compensation".to_string(),
     };
     let states = if sim {
         "the simulator publishes the measured joint_states".to_string()
@@ -372,7 +400,9 @@ fn run() -> anyhow::Result<()> {
     let report = |events: Vec<Event>| {
         for e in events {
             match e {
-                Event::Resumed | Event::Reconnected => ros.info(&e.to_string()),
+                Event::Resumed | Event::Reconnected | Event::GyroDamping(true) => {
+                    ros.info(&e.to_string())
+                }
                 Event::BackendFailed(_) | Event::RetryFailed { .. } => ros.error(&e.to_string()),
                 _ => ros.warn(&e.to_string()),
             }
@@ -456,6 +486,22 @@ fn run() -> anyhow::Result<()> {
             }
         }
     };
+    // The body rate of an imu/data message, in the base link's frame (an IMU elsewhere is
+    // refused, said once: its rate would need the transform between the frames).
+    let said_frame = std::cell::Cell::new(false);
+    let body_rate = |m: &Imu| -> Option<nalgebra::Vector3<f64>> {
+        if !m.header.frame_id.is_empty() && m.header.frame_id != base_frame {
+            if !said_frame.replace(true) {
+                ros.error(&format!(
+                    "imu/data in frame `{}` ignored: gyro damping needs the body rate in the base link's frame `{base_frame}`",
+                    m.header.frame_id
+                ));
+            }
+            return None;
+        }
+        let w = &m.angular_velocity;
+        Some(nalgebra::Vector3::new(w.x, w.y, w.z))
+    };
     let t0 = Instant::now();
     smol::block_on(executor.run(async {
         if !simulated {
@@ -464,6 +510,12 @@ fn run() -> anyhow::Result<()> {
                 let t = t0.elapsed().as_secs_f64();
                 while let Some(cmd) = take_command(&sub, &ros) {
                     report(bridge.command(t, &cmd.name, &cmd.position));
+                }
+                // The newest body rate, timed on arrival (the IMU's clock is not ours).
+                while let Some(Ok(Some((m, _)))) = imu.as_ref().map(|s| s.take()) {
+                    if let Some(w) = body_rate(&m) {
+                        bridge.set_body_rate(t, w);
+                    }
                 }
                 do_tick(&mut bridge, t);
             }
@@ -474,10 +526,18 @@ fn run() -> anyhow::Result<()> {
         enum Wake {
             Tick(Option<Tick>),
             Command(Option<JointState>),
+            Imu(Imu),
         }
         let mut pending: Option<(f64, Instant)> = None;
         let mut clock_s = 0.0;
         let mut newest_command_s = f64::NEG_INFINITY;
+        // With gyro damping, tick t also waits for the body rate stamped t (published by the
+        // simulator with the state of t, before /clock): the run stays deterministic.
+        let mut newest_imu_s = if imu.is_some() {
+            f64::NEG_INFINITY
+        } else {
+            f64::INFINITY
+        };
         let wait = Duration::from_secs_f64(lockstep_wait_s);
         while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
             let wake = async {
@@ -491,12 +551,32 @@ fn run() -> anyhow::Result<()> {
                     }
                 })
             }
+            .or(async {
+                match &imu {
+                    Some(sub) => loop {
+                        match sub.async_take().await {
+                            Ok((m, _)) => break Wake::Imu(m),
+                            Err(e) => {
+                                ros.warn(&format!("imu/data: unreadable message dropped: {e:?}"))
+                            }
+                        }
+                    },
+                    None => std::future::pending().await,
+                }
+            })
             .or(async { Wake::Tick(ticks.next().await) })
             .await;
             match wake {
                 Wake::Command(Some(cmd)) => {
                     newest_command_s = newest_command_s.max(cmd.header.stamp.as_secs_f64());
                     report(bridge.command(clock_s, &cmd.name, &cmd.position));
+                }
+                Wake::Imu(m) => {
+                    let t = m.header.stamp.as_secs_f64();
+                    if let Some(w) = body_rate(&m) {
+                        newest_imu_s = newest_imu_s.max(t);
+                        bridge.set_body_rate(t, w);
+                    }
                 }
                 Wake::Command(None) | Wake::Tick(None) => {}
                 Wake::Tick(Some(tick)) => {
@@ -519,7 +599,8 @@ fn run() -> anyhow::Result<()> {
                 }
             }
             if let Some((p, since)) = pending
-                && (newest_command_s >= p - 1e-9 || since.elapsed() >= wait)
+                && ((newest_command_s >= p - 1e-9 && newest_imu_s >= p - 1e-9)
+                    || since.elapsed() >= wait)
             {
                 pending = None;
                 do_tick(&mut bridge, p);
