@@ -16,11 +16,11 @@ use crate::error::GaitError;
 /// Fractions of the leg length (L1 + L2) used when a length is left at 0.
 pub mod auto {
     /// Step length: distance the front foot ends ahead of the other.
-    pub const STEP_LENGTH_PER_LEG: f64 = 0.35;
+    pub const STEP_LENGTH_PER_LEG: f64 = 0.45;
     /// Swing foot lift.
     pub const FOOT_LIFT_PER_LEG: f64 = 0.12;
     /// Hip-pitch-axis to ankle-pitch-axis height while walking.
-    pub const HIP_DROP_PER_LEG: f64 = 0.8;
+    pub const HIP_DROP_PER_LEG: f64 = 0.75;
     /// Minimum CoM margin and minimum ZMP margin, as a fraction of the narrower sole side.
     pub const MARGIN_PER_SOLE_WIDTH: f64 = 1.0 / 6.0;
     /// Longest backward step, as a fraction of the forward step length.

@@ -25,13 +25,13 @@ fn auto_values_scale_with_the_robot() {
     };
     // Default robot: L1 = L2 = 0.09, ankle-to-sole 0.03, sole 0.10 x 0.06.
     let c = timed.resolve(&default_model()).unwrap();
-    assert!((c.step_length_m - 0.35 * 0.18).abs() < 1e-12);
+    assert!((c.step_length_m - 0.45 * 0.18).abs() < 1e-12);
     assert!((c.foot_lift_m - 0.0216).abs() < 1e-12);
-    assert!((c.hip_height_m - (0.03 + 0.8 * 0.18)).abs() < 1e-12);
+    assert!((c.hip_height_m - (0.03 + 0.75 * 0.18)).abs() < 1e-12);
     assert!((c.min_com_margin_m - 0.01).abs() < 1e-12);
     // Test biped: L1 0.11, L2 0.10, hip offset 0.015, ankle-to-sole 0.035, sole 0.12 x 0.07.
     let c = timed.resolve(&biped6_model()).unwrap();
-    assert!((c.hip_height_m - (0.035 + 0.015 + 0.8 * 0.21)).abs() < 1e-12);
+    assert!((c.hip_height_m - (0.035 + 0.015 + 0.75 * 0.21)).abs() < 1e-12);
     assert!((c.min_com_margin_m - 0.07 / 6.0).abs() < 1e-12);
     // The slow walk of the tests: 0.25 x leg on hips 0.85 x leg, 2 s / 1 s / 1 s.
     let c = GaitParams::slow(&biped6_model())

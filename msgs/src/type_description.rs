@@ -773,8 +773,8 @@ mod tests {
 
     #[test]
     fn an_unknown_type_is_named_in_the_error() {
-        let e = rihs01("sensor_msgs/msg/Imu").unwrap_err();
-        assert!(e.to_string().contains("'sensor_msgs/msg/Imu'"), "{e}");
+        let e = rihs01("sensor_msgs/msg/LaserScan").unwrap_err();
+        assert!(e.to_string().contains("'sensor_msgs/msg/LaserScan'"), "{e}");
         assert!(e.to_string().contains("sensor_msgs/msg/JointState"), "{e}");
     }
 }
