@@ -14,7 +14,10 @@
 //! (the longest time one tick moves the joints for, 0.05 s), `estop_follow_s` (how long an
 //! e-stop keeps following the commands while the planner brakes the walk along its path,
 //! 0.4 s; 0: hold at once), `sag_compensation_kp` (the servos' stiffness in N·m/rad for the
-//! sag compensation; 0 = off), `sim_wait_s` (how long the `sim` backend waits for the
+//! sag compensation; 0 = off), `gyro_damping_nm_s_per_rad` (damp the body's roll and pitch
+//! with the legs on the floor from `imu/data`, sensor_msgs/msg/Imu in the base link's frame,
+//! as this much more servo derivative gain would; needs `sag_compensation_kp`; 0 = off),
+//! `sim_wait_s` (how long the `sim` backend waits for the
 //! simulator, 10 s), `lockstep_wait_s`, the serial board's `protocol`, `port`, `baud`,
 //! `calibration_file`, `reply_timeout_s`, `retry_first_s`, `retry_max_s`, and the read-only
 //! `joint_states_measured` (whether `joint_states` carries measured positions or, for
@@ -532,12 +535,10 @@ fn run() -> anyhow::Result<()> {
         let mut clock_s = 0.0;
         let mut newest_command_s = f64::NEG_INFINITY;
         // With gyro damping, tick t also waits for the body rate stamped t (published by the
-        // simulator with the state of t, before /clock): the run stays deterministic.
-        let mut newest_imu_s = if imu.is_some() {
-            f64::NEG_INFINITY
-        } else {
-            f64::INFINITY
-        };
+        // simulator with the state of t, before /clock), so the run stays deterministic, as
+        // long as the IMU publishes: one silent for more than GYRO_MAX_AGE_S (or never heard)
+        // does not hold the clock.
+        let mut newest_imu_s = f64::NEG_INFINITY;
         let wait = Duration::from_secs_f64(lockstep_wait_s);
         while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
             let wake = async {
@@ -573,8 +574,9 @@ fn run() -> anyhow::Result<()> {
                 }
                 Wake::Imu(m) => {
                     let t = m.header.stamp.as_secs_f64();
+                    // Heard, even in a frame it cannot use (said once): not waited for.
+                    newest_imu_s = newest_imu_s.max(t);
                     if let Some(w) = body_rate(&m) {
-                        newest_imu_s = newest_imu_s.max(t);
                         bridge.set_body_rate(t, w);
                     }
                 }
@@ -599,7 +601,7 @@ fn run() -> anyhow::Result<()> {
                 }
             }
             if let Some((p, since)) = pending
-                && ((newest_command_s >= p - 1e-9 && newest_imu_s >= p - 1e-9)
+                && ((newest_command_s >= p - 1e-9 && !imu_due(imu.is_some(), newest_imu_s, p))
                     || since.elapsed() >= wait)
             {
                 pending = None;
@@ -695,5 +697,33 @@ fn take_command(sub: &ros2_client::Subscription<JointState>, ros: &RosNode) -> O
                 ));
             }
         }
+    }
+}
+
+/// Whether a lockstep tick at `tick_s` still waits for the body rate: gyro damping is on
+/// (`subscribed`), the IMU is publishing (its newest rate, stamped `newest_imu_s`, at most
+/// [`joint_bridge::GYRO_MAX_AGE_S`] older than the tick) and the rate of this tick has not
+/// come yet.
+fn imu_due(subscribed: bool, newest_imu_s: f64, tick_s: f64) -> bool {
+    subscribed
+        && newest_imu_s < tick_s - 1e-9
+        && tick_s - newest_imu_s <= joint_bridge::GYRO_MAX_AGE_S + 1e-9
+}
+
+#[cfg(test)]
+mod tests {
+    use super::imu_due;
+
+    #[test]
+    fn a_tick_waits_for_the_body_rate_only_while_the_imu_publishes() {
+        // Publishing every 10 ms: tick 1.00 waits until the rate of 1.00 has come.
+        assert!(imu_due(true, 0.99, 1.0));
+        assert!(!imu_due(true, 1.0, 1.0));
+        // Never heard, or silent for more than 0.05 s: the clock is not held.
+        assert!(!imu_due(true, f64::NEG_INFINITY, 1.0));
+        assert!(!imu_due(true, 0.94, 1.0));
+        assert!(imu_due(true, 0.95, 1.0));
+        // Gyro damping off: never.
+        assert!(!imu_due(false, 0.99, 1.0));
     }
 }
