@@ -198,7 +198,8 @@ pub enum Event {
     Resumed,
     /// The backend failed; it was deactivated (torque off).
     BackendFailed(BackendError),
-    /// Sag compensation could not be computed; the uncompensated output was written.
+    /// Sag compensation or gyro damping could not be computed (which, and why); the output
+    /// was written without it.
     CompensationFailed(String),
     /// Gyro damping stopped (`false`: no body rate fresher than [`GYRO_MAX_AGE_S`]) or
     /// started again (`true`).
@@ -276,9 +277,7 @@ impl fmt::Display for Event {
             },
             Event::Resumed => write!(f, "joint commands resumed"),
             Event::BackendFailed(e) => write!(f, "backend failed, torque off: {e}"),
-            Event::CompensationFailed(why) => {
-                write!(f, "sag compensation skipped this tick: {why}")
-            }
+            Event::CompensationFailed(why) => write!(f, "{why}: skipped this tick"),
             Event::GyroDamping(true) => write!(f, "gyro damping on: the body rate is coming"),
             Event::GyroDamping(false) => write!(
                 f,
@@ -910,13 +909,15 @@ impl<B: Backend> JointBridge<B> {
                 && let Err(why) = c.add_to(&goal, &mut aim)
             {
                 aim.copy_from_slice(&goal);
-                events.push(Event::CompensationFailed(why));
+                events.push(Event::CompensationFailed(format!(
+                    "sag compensation: {why}"
+                )));
             }
             if let Some((g, damping)) = &mut self.gyro {
                 let on = match g.add_to(t_s, &goal, &mut aim) {
                     Ok(on) => on,
                     Err(why) => {
-                        events.push(Event::CompensationFailed(why));
+                        events.push(Event::CompensationFailed(format!("gyro damping: {why}")));
                         false
                     }
                 };
