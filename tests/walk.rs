@@ -361,22 +361,10 @@ fn a_scene_robot_walks_through_the_fleet_with_its_joint_map() {
 #[test]
 fn the_op3_layout_robot_walks_ten_steps_through_the_fleet_in_its_own_scene() {
     let out = out_dir("op3-layout");
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
-    let arg = |f: &str| data.join(f).to_str().unwrap().to_owned();
-    let run = walk(
-        86,
-        &out,
-        &[
-            "--steps",
-            "10",
-            "--robot",
-            &arg("op3_layout.urdf"),
-            "--mjcf",
-            &arg("op3_layout_scene.xml"),
-            "--joint-map",
-            &arg("op3_layout_scene_map.yaml"),
-        ],
-    );
+    let mut args = vec!["--steps", "10"];
+    let scene = op3_scene_args();
+    args.extend(scene.iter().map(String::as_str));
+    let run = walk(86, &out, &args);
     assert!(
         run.status.success(),
         "{}",
@@ -418,6 +406,21 @@ fn random_instants(seed: u64, n: usize, from: f64, to: f64) -> String {
         .join(",")
 }
 
+/// `biped walk` arguments of the OP3-layout test robot in its own MuJoCo scene: its URDF,
+/// scene and joint map.
+fn op3_scene_args() -> Vec<String> {
+    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let arg = |f: &str| data.join(f).to_str().unwrap().to_owned();
+    vec![
+        "--robot".to_owned(),
+        arg("op3_layout.urdf"),
+        "--mjcf".to_owned(),
+        arg("op3_layout_scene.xml"),
+        "--joint-map".to_owned(),
+        arg("op3_layout_scene_map.yaml"),
+    ]
+}
+
 /// `biped walk` arguments of each robot's fast walk: the default robot with
 /// `config/gait_fast.yaml`, the OP3-layout test robot (its URDF, scene and joint map) with
 /// `tests/data/op3_layout_fast.yaml`.
@@ -429,16 +432,11 @@ fn fast_walk_args() -> [Vec<String>; 2] {
         "--params".to_owned(),
         arg(root.join("config/gait_fast.yaml")),
     ];
-    let op3 = vec![
+    let mut op3 = vec![
         "--params".to_owned(),
         arg(data.join("op3_layout_fast.yaml")),
-        "--robot".to_owned(),
-        arg(data.join("op3_layout.urdf")),
-        "--mjcf".to_owned(),
-        arg(data.join("op3_layout_scene.xml")),
-        "--joint-map".to_owned(),
-        arg(data.join("op3_layout_scene_map.yaml")),
     ];
+    op3.extend(op3_scene_args());
     [default_robot, op3]
 }
 
@@ -615,27 +613,14 @@ fn the_default_robot_pauses_anywhere_through_the_fleet() {
 /// 2.7-4.8 mm late, the base rocking 9-14 mm (BENCHMARKS.md, "Gyro damping").
 #[test]
 fn the_op3_layout_robot_stops_anywhere_at_its_defaults() {
-    let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data");
-    let arg = |f: &str| data.join(f).to_str().unwrap().to_owned();
-    let (urdf, scene, map) = (
-        arg("op3_layout.urdf"),
-        arg("op3_layout_scene.xml"),
-        arg("op3_layout_scene_map.yaml"),
-    );
+    let mut args = vec!["--steps", "20"];
+    let scene = op3_scene_args();
+    args.extend(scene.iter().map(String::as_str));
     // 20 steps at its defaults: 38.0 s of walk.
     stops_anywhere_through_the_fleet(
         "stop-anywhere-op3",
         106,
-        &[
-            "--steps",
-            "20",
-            "--robot",
-            &urdf,
-            "--mjcf",
-            &scene,
-            "--joint-map",
-            &map,
-        ],
+        &args,
         (Stop::Estop, 0x5EED_2026_1128_0003, 38.0),
         true,
     );

@@ -2,21 +2,8 @@
 //! joints all turn about +x (roll) or +y (pitch, knee) at zero angles (config/biped.urdf).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
-use ik_solver::{BipedModel, DEFAULT_URDF};
+use ik_solver::{BipedModel, DEFAULT_URDF, Side};
 use nalgebra::Vector3;
-
-const LEGS: [&str; 10] = [
-    "l_hip_roll",
-    "l_hip_pitch",
-    "l_knee",
-    "l_ankle_pitch",
-    "l_ankle_roll",
-    "r_hip_roll",
-    "r_hip_pitch",
-    "r_knee",
-    "r_ankle_pitch",
-    "r_ankle_roll",
-];
 
 fn model() -> BipedModel {
     BipedModel::from_urdf_str(DEFAULT_URDF, None).unwrap()
@@ -26,14 +13,19 @@ fn set(model: &BipedModel, q: &mut [f64], name: &str, v: f64) {
     q[model.robot().dof_index(name).unwrap()] = v;
 }
 
+/// The offset of every leg joint, left leg then right, hip to ankle (roll, pitch, knee,
+/// ankle pitch, ankle roll on this robot), by name.
 fn offsets(model: &BipedModel, q: &[f64], w: Vector3<f64>, gain_s: f64) -> Vec<(String, f64)> {
     let d = model.gyro_damping_rad(q, &w, gain_s).unwrap();
-    LEGS.iter()
-        .map(|n| (n.to_string(), d[model.robot().dof_index(n).unwrap()]))
+    Side::BOTH
+        .iter()
+        .flat_map(|&s| model.leg(s).joints.iter().flatten())
+        .map(|j| (j.name.clone(), d[j.dof]))
         .collect()
 }
 
 fn close(got: &[(String, f64)], want: &[f64; 10]) {
+    assert_eq!(got.len(), 10, "{got:?}");
     for ((n, g), w) in got.iter().zip(want) {
         assert!((g - w).abs() < 1e-12, "{n}: {g} rad, by hand {w} rad");
     }

@@ -106,6 +106,17 @@ ros_message!(
     [("x", "double"), ("y", "double"), ("z", "double")]
 );
 
+impl From<&nalgebra::Vector3<f64>> for Vector3 {
+    /// The wire form of a vector.
+    fn from(v: &nalgebra::Vector3<f64>) -> Self {
+        Self {
+            x: v.x,
+            y: v.y,
+            z: v.z,
+        }
+    }
+}
+
 /// geometry_msgs/msg/Point.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Point {
@@ -145,6 +156,19 @@ ros_message!(
     ]
 );
 
+impl From<&nalgebra::UnitQuaternion<f64>> for Quaternion {
+    /// The wire form of a rotation (x, y, z, w).
+    fn from(q: &nalgebra::UnitQuaternion<f64>) -> Self {
+        let q = q.quaternion();
+        Self {
+            x: q.i,
+            y: q.j,
+            z: q.k,
+            w: q.w,
+        }
+    }
+}
+
 impl Default for Quaternion {
     /// The identity, as the ROS default (w = 1).
     fn default() -> Self {
@@ -177,19 +201,14 @@ ros_message!(
 impl From<&nalgebra::Isometry3<f64>> for Pose {
     /// The wire form of a pose (the quaternion as x, y, z, w).
     fn from(p: &nalgebra::Isometry3<f64>) -> Self {
-        let (t, q) = (&p.translation.vector, p.rotation.quaternion());
+        let t = &p.translation.vector;
         Self {
             position: Point {
                 x: t.x,
                 y: t.y,
                 z: t.z,
             },
-            orientation: Quaternion {
-                x: q.i,
-                y: q.j,
-                z: q.k,
-                w: q.w,
-            },
+            orientation: Quaternion::from(&p.rotation),
         }
     }
 }

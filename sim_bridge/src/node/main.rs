@@ -188,23 +188,14 @@ impl Outputs {
                 .map_err(|e| e.to_string()),
         );
         let imu = sim.imu();
-        let v = |v: nalgebra::Vector3<f64>| biped_msgs::msg::Vector3 {
-            x: v.x,
-            y: v.y,
-            z: v.z,
-        };
         check(
             "imu/data",
             self.imu
                 .publish(Imu {
                     header: header(&self.base_frame),
-                    orientation: Pose::from(&nalgebra::Isometry3::from_parts(
-                        nalgebra::Translation3::identity(),
-                        imu.orientation,
-                    ))
-                    .orientation,
-                    angular_velocity: v(imu.angular_velocity_rad_s),
-                    linear_acceleration: v(imu.specific_force_m_s2),
+                    orientation: (&imu.orientation).into(),
+                    angular_velocity: (&imu.angular_velocity_rad_s).into(),
+                    linear_acceleration: (&imu.specific_force_m_s2).into(),
                     // Ground truth: no error, but no covariance claimed either (0: unknown).
                     ..Imu::default()
                 })
