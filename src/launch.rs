@@ -56,7 +56,18 @@ pub struct LaunchOptions {
     pub serial: SerialArgs,
     /// Restarting nodes that die ([`Respawn`]); `None`: any node's exit stops the fleet.
     pub respawn: Option<Respawn>,
+    /// Run the nodes of [`COMPOSABLE_NODES`] in one process ([`COMPOSED`], `biped
+    /// compose`) instead of one process each.
+    pub composed: bool,
 }
+
+/// The name of the process that runs the composed nodes (its log: `composed.log`).
+pub const COMPOSED: &str = "composed";
+
+/// The nodes `--composed` runs in one process, in start order: the control pipeline.
+/// robot_state_publisher stays apart, as the ROS tool it stands in for, and so does the
+/// simulator, as the robot it stands in for (and `biped walk` starts it last).
+pub const COMPOSABLE_NODES: [&str; 3] = ["joint_bridge", "ik_solver", "gait_planner"];
 
 /// When `biped launch` restarts a node that died (killed, crashed): after `first_delay_s`,
 /// doubled for each death that comes within `quick_s` of the node's (re)start, up to
@@ -227,6 +238,7 @@ fn serial_args(o: &LaunchOptions) -> anyhow::Result<Vec<String>> {
 impl LaunchOptions {
     /// The nodes of this launch, in start order: the simulator last, so that a walk command
     /// sent before it starts is taken on simulated time.
+    /// Composed, the process of [`COMPOSED`] stands for all the nodes it runs.
     pub fn nodes(&self) -> Vec<&'static str> {
         let mut n = vec![
             "joint_bridge",
@@ -236,6 +248,10 @@ impl LaunchOptions {
         ];
         if self.backend == "sim" {
             n.push("sim_bridge");
+        }
+        if self.composed {
+            n.retain(|node| !COMPOSABLE_NODES.contains(node));
+            n.insert(0, COMPOSED);
         }
         n
     }
@@ -369,11 +385,26 @@ impl Fleet {
         Ok(args)
     }
 
-    /// Starts one node's process, its output to its log (appended to on a restart, so the
+    /// A node's `--ros-args`, restarted `restart` times.
+    fn node_args(&self, name: &str, restart: u32) -> anyhow::Result<Vec<String>> {
+        let mut args = self.ros_args(name)?;
+        if restart > 0 && name == "gait_planner" {
+            // Restarted mid-walk, the planner must not stand the robot up from wherever it
+            // is: it holds the measured pose until the robot stands (gait_planner README).
+            args.extend(["-p".to_string(), "stand_at_start:=false".to_string()]);
+        }
+        Ok(args)
+    }
+
+    /// Starts one node's process (or [`COMPOSED`]'s), its output to its log (appended to on a restart, so the
     /// output before a crash is kept).
     fn start_process(&self, name: &'static str, restart: u32) -> anyhow::Result<(Child, PathBuf)> {
         use std::io::Write as _;
-        let bin = node_binary(name)?;
+        let bin = if name == COMPOSED {
+            std::env::current_exe().context("cannot locate the biped executable")?
+        } else {
+            node_binary(name)?
+        };
         let log = self.options.log_dir.join(format!("{name}.log"));
         let mut file = if restart == 0 {
             std::fs::File::create(&log)
@@ -386,12 +417,16 @@ impl Fleet {
                 .with_context(|| format!("cannot write {}", log.display()))?;
         }
         let err = file.try_clone()?;
-        let mut args = self.ros_args(name)?;
-        if restart > 0 && name == "gait_planner" {
-            // Restarted mid-walk, the planner must not stand the robot up from wherever it
-            // is: it holds the measured pose until the robot stands (gait_planner README).
-            args.extend(["-p".to_string(), "stand_at_start:=false".to_string()]);
-        }
+        let args = if name == COMPOSED {
+            let mut args = vec!["compose".to_string()];
+            for node in COMPOSABLE_NODES {
+                args.extend(["--node".to_string(), node.to_string()]);
+                args.extend(self.node_args(node, restart)?);
+            }
+            args
+        } else {
+            self.node_args(name, restart)?
+        };
         let child = Command::new(&bin)
             .args(args)
             .envs(self.options.env.iter().map(|(k, v)| (k, v)))

@@ -9,6 +9,7 @@
 
 mod bag;
 mod check_robot;
+mod compose;
 mod launch;
 mod plan;
 mod plots;
@@ -82,6 +83,25 @@ enum Command {
         /// Do not restart nodes: any node's exit stops the fleet.
         #[arg(long)]
         no_respawn: bool,
+        /// Run gait_planner, ik_solver and joint_bridge in one process (`biped compose`):
+        /// messages between them are delivered in-process, every topic stays on DDS for
+        /// other peers. Restarted as one.
+        #[arg(long)]
+        composed: bool,
+    },
+    /// Run fleet nodes in one process, as ROS 2's component container: `--node <name>
+    /// [--ros-args ...]` for each (gait_planner, ik_solver, joint_bridge, sim_bridge), each
+    /// with the arguments its own binary takes. Messages between them are delivered
+    /// in-process; every topic stays on DDS for other peers. Until Ctrl-C or SIGTERM, or
+    /// until one node ends (which stops the others).
+    Compose {
+        /// `--node <name> [--ros-args ...]`, repeated.
+        #[arg(
+            trailing_var_arg = true,
+            allow_hyphen_values = true,
+            value_name = "--node NAME ARGS"
+        )]
+        args: Vec<String>,
     },
     /// Walk the robot in MuJoCo: the ROS 2 fleet and the simulator in lockstep on simulated
     /// time (DDS on this host unless ROS_AUTOMATIC_DISCOVERY_RANGE says otherwise); writes
@@ -142,6 +162,11 @@ enum Command {
             conflicts_with = "estop_at"
         )]
         pause_at: Vec<f64>,
+        /// Run gait_planner, ik_solver and joint_bridge in one process (`biped compose`):
+        /// the lockstep tick's hops between them are in-process; the simulator stays
+        /// apart, and every topic is on DDS as without it.
+        #[arg(long)]
+        composed: bool,
     },
     /// Record topics into a rosbag2 bag (Jazzy format, MCAP or sqlite3) until Ctrl-C,
     /// SIGTERM or --duration.
@@ -428,6 +453,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             serial,
             respawn_delay,
             no_respawn,
+            composed,
         } => launch::launch(&launch::LaunchOptions {
             backend,
             robot,
@@ -439,7 +465,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             env: Vec::new(),
             serial,
             respawn: (!no_respawn).then(|| launch::Respawn::with_delay(respawn_delay)),
+            composed,
         }),
+        Command::Compose { args } => compose::compose(&args),
         Command::Walk {
             steps,
             twist,
@@ -454,6 +482,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             bag,
             estop_at,
             pause_at,
+            composed,
         } => {
             if !(settle.is_finite() && (0.0..=60.0).contains(&settle)) {
                 anyhow::bail!("--settle {settle}: must be within [0, 60] s");
@@ -484,6 +513,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 bag,
                 estop_at_s,
                 pause_at_s,
+                composed,
             })?;
             let r = &outcome.report;
             let m = &r.measured;

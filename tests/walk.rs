@@ -36,8 +36,11 @@ fn num(v: &Value, key: &str) -> f64 {
 
 /// The walk: 20 steps, default parameters, through the whole fleet, at #16's speed
 /// for the default robot (>= 0.035 m/s; 0.045 measured) with the CoP inside >= 99 % of the
-/// time, slip < 5 mm, tilt < 5 deg. Run twice: the lockstep runs give the same report,
-/// number for number (only the wall-clock figures differ).
+/// time, slip < 5 mm, tilt < 5 deg. Run twice, the second time with gait_planner,
+/// ik_solver and joint_bridge composed in one process (`--composed`): the lockstep runs give
+/// the same report, number for number (only the wall-clock figures differ), so composition
+/// changes nothing the robot does, and `biped walk`'s own subscriber, outside that process,
+/// still gets every `gait/phase` and `joint_commands` message it draws and measures.
 #[test]
 fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
     let (a, b) = (out_dir("twenty-a"), out_dir("twenty-b"));
@@ -91,12 +94,21 @@ fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
         assert!(svg.starts_with("<svg") && svg.len() > 10_000, "{f}");
     }
 
-    let second = walk(68, &b, &["--steps", "20"]);
+    let second = walk(68, &b, &["--steps", "20", "--composed"]);
     assert!(
         second.status.success(),
         "second run failed: {}",
         String::from_utf8_lossy(&second.stderr)
     );
+    // One process ran the three nodes (its log has each node's lines), none its own.
+    let composed = std::fs::read_to_string(b.join("logs/composed.log")).unwrap();
+    for node in ["/gait_planner", "/ik_solver", "/joint_bridge"] {
+        assert!(
+            composed.contains(node),
+            "composed.log has no {node}:\n{composed}"
+        );
+    }
+    assert!(!b.join("logs/joint_bridge.log").exists());
     let mut r2 = report(&b);
     let mut r1 = r.clone();
     for v in [&mut r1, &mut r2] {

@@ -28,6 +28,9 @@ pub mod timing;
 pub mod trajectory;
 pub mod zmp;
 
+/// The ROS 2 node (feature `node`): [`node::run`] alone in its process or composed.
+#[cfg(feature = "node")]
+pub mod node;
 pub use error::GaitError;
 pub use params::{GaitConfig, GaitParams};
 pub use phase::{PhaseKind, Support, WalkRequest};

@@ -26,6 +26,9 @@ pub mod odometry;
 mod statics;
 pub mod support;
 
+/// The ROS 2 node (feature `node`): [`node::run`] alone in its process or composed.
+#[cfg(feature = "node")]
+pub mod node;
 pub use error::{IkError, ModelError, ParameterFilesError};
 pub use frames::{FrameTransform, FrameTree, JointStateError, SkippedJoints};
 pub use ik::{AnkleTarget, BipedModel, IkIssue, LegSolution};

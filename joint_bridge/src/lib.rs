@@ -23,6 +23,9 @@ mod mock;
 pub mod motion;
 pub mod serial;
 
+/// The ROS 2 node (feature `node`): [`node::run`] alone in its process or composed.
+#[cfg(feature = "node")]
+pub mod node;
 pub use backend::{Backend, BackendError, DiagnosticLevel, Diagnostics, Lifecycle, Reading};
 pub use bridge::{
     Backoff, BridgeConfig, Event, FOLLOW_SILENCE_S, FollowEnd, JointBridge, MAX_UNKNOWN_REPORTED,

@@ -61,7 +61,7 @@ pub enum TickSource {
     /// `/clock` messages.
     Sim {
         /// The `/clock` subscription.
-        clock: Box<ros2_client::Subscription<Clock>>,
+        clock: Box<crate::local::Subscription<Clock>>,
         /// Tick period (ns).
         period_ns: i64,
         /// The last tick's index and `/clock` value (ns).

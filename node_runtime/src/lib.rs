@@ -10,8 +10,10 @@
 //! - [`qos`]: the fleet's QoS profiles;
 //! - [`log`]: logging to the console and `/rosout` at once;
 //! - [`clock`]: control ticks from the monotonic clock or from `/clock` (`use_sim_time`);
-//! - [`node`]: start-up ([`NodeSetup`], [`shutdown_flag`]) and the started node
-//!   ([`RosNode`]: typed publishers and subscriptions, logging, the executor).
+//! - [`node`]: start-up ([`NodeSetup`], [`shutdown_flag`]), where a node runs ([`Host`]:
+//!   alone in its process, or composed with others in one) and the started node
+//!   ([`RosNode`]: typed publishers and subscriptions, logging, the executor);
+//! - [`local`]: in-process delivery between nodes composed in one process.
 //!
 //! ros2-client (pure Rust over RustDDS) underneath; no core crate depends on this one, only
 //! the node binaries (each core crate's `node` feature) and the `biped` command.
@@ -20,6 +22,7 @@ pub mod args;
 pub mod clock;
 pub mod context;
 mod error;
+pub mod local;
 pub mod log;
 pub mod node;
 pub mod params;
@@ -32,8 +35,11 @@ pub use context::{
     ros_environment_from, static_peers_from,
 };
 pub use error::RosError;
+pub use local::{Publisher, Subscription};
 pub use log::Log;
-pub use node::{LAUNCH_PARENT_ENV, NodeSetup, RosNode, create_node, shutdown_flag};
+pub use node::{
+    Host, LAUNCH_PARENT_ENV, NodeSetup, RosNode, create_node, node_main, shutdown_flag,
+};
 pub use params::{
     ParameterCheck, check_known, from_parameter_value, node_parameters, read_at_startup,
     to_parameter_value,

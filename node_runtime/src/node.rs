@@ -6,12 +6,15 @@
 use std::collections::BTreeMap;
 
 use biped_msgs::RosMessage;
+
+use crate::local::RosMessageBound;
 use ros2_client::{Context, Node, NodeName, NodeOptions, ParameterValue};
 use serde_norway::Value;
 
 use crate::args::{RosArgs, topic_name};
 use crate::context::context_from_env;
 use crate::error::RosError;
+use crate::local::{Bus, Publisher, Subscription};
 use crate::log::Log;
 use crate::params::{ParameterCheck, node_parameters};
 use crate::qos;
@@ -150,6 +153,26 @@ impl NodeSetup {
     }
 }
 
+/// The `main` of a node alone in its process: its setup from the command line, its host
+/// ([`Host::process`]), then `run`; an error is printed as `<name>: error: ...` and fails
+/// the process.
+pub fn node_main<E: std::fmt::Display>(
+    name: &str,
+    run: impl FnOnce(NodeSetup, &Host) -> Result<(), E>,
+) -> std::process::ExitCode {
+    let result = NodeSetup::from_env(name)
+        .map_err(|e| e.to_string())
+        .and_then(|setup| Ok((setup, Host::process().map_err(|e| e.to_string())?)))
+        .and_then(|(setup, host)| run(setup, &host).map_err(|e| format!("{e:#}")));
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{name}: error: {e}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
 /// The environment variable through which `biped launch` gives its nodes its process id.
 pub const LAUNCH_PARENT_ENV: &str = "BIPED_LAUNCH_PARENT";
 
@@ -182,6 +205,69 @@ pub fn shutdown_flag() -> Result<std::sync::Arc<std::sync::atomic::AtomicBool>, 
     Ok(flag)
 }
 
+/// Where a node runs: alone in its process ([`Host::process`]) or composed with others in
+/// one ([`Host::composed`]: one DDS participant, messages between them delivered
+/// in-process), and the flag that stops it.
+#[derive(Clone)]
+pub struct Host {
+    context: Context,
+    bus: Option<std::sync::Arc<Bus>>,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl std::fmt::Debug for Host {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Host")
+            .field("composed", &self.bus.is_some())
+            .field("stop", &self.stop)
+            .finish()
+    }
+}
+
+impl Host {
+    /// A node alone in its process: the DDS domain of the environment, stopped by SIGINT or
+    /// SIGTERM (or when `biped launch` is gone). Once per process.
+    pub fn process() -> Result<Self, RosError> {
+        Ok(Self {
+            context: context_from_env()?,
+            bus: None,
+            stop: shutdown_flag()?,
+        })
+    }
+
+    /// Nodes composed in one process, each on its own thread with a clone of this host:
+    /// one DDS participant (the environment's domain) for all of them, and a message one
+    /// of them publishes reaches the others in-process (and outside peers on DDS).
+    /// `stop` ends them all.
+    pub fn composed(stop: std::sync::Arc<std::sync::atomic::AtomicBool>) -> Result<Self, RosError> {
+        Ok(Self {
+            context: context_from_env()?,
+            bus: Some(std::sync::Arc::new(Bus::default())),
+            stop,
+        })
+    }
+
+    /// True for nodes composed in one process.
+    pub fn is_composed(&self) -> bool {
+        self.bus.is_some()
+    }
+
+    /// The flag that stops the node's loops (set: stop).
+    pub fn stop_flag(&self) -> std::sync::Arc<std::sync::atomic::AtomicBool> {
+        self.stop.clone()
+    }
+
+    /// True once the node is to stop.
+    pub fn stopping(&self) -> bool {
+        self.stop.load(std::sync::atomic::Ordering::SeqCst)
+    }
+
+    /// Asks every node of this host to stop.
+    pub fn request_stop(&self) {
+        self.stop.store(true, std::sync::atomic::Ordering::SeqCst);
+    }
+}
+
 /// A started node: the DDS context, the ros2-client node, its setup and its log, with
 /// helpers that create typed publishers and subscriptions on resolved topic names.
 pub struct RosNode {
@@ -193,6 +279,8 @@ pub struct RosNode {
     pub log: Log,
     // The node keeps its DDS participant alive through this.
     _context: Context,
+    /// The process's in-process topics, when composed.
+    bus: Option<std::sync::Arc<Bus>>,
     /// When each throttled message was last logged, and how many were held back since.
     throttled: std::sync::Mutex<BTreeMap<String, (std::time::Instant, u64)>>,
 }
@@ -213,14 +301,15 @@ fn dds_err(what: String) -> impl FnOnce(ros2_client::ros2::CreateError) -> RosEr
 }
 
 impl RosNode {
-    /// Joins the DDS domain of the environment and creates the node with its declared
-    /// parameters and parameter check.
+    /// Creates the node on its host's DDS participant, with its declared parameters and
+    /// parameter check.
     pub fn start(
+        host: &Host,
         setup: NodeSetup,
         declared: &BTreeMap<String, ParameterValue>,
         check: Option<ParameterCheck>,
     ) -> Result<Self, RosError> {
-        let context = context_from_env()?;
+        let context = host.context.clone();
         let node = create_node(
             &context,
             &setup.name,
@@ -235,6 +324,7 @@ impl RosNode {
             setup,
             log,
             _context: context,
+            bus: host.bus.clone(),
             throttled: std::sync::Mutex::new(BTreeMap::new()),
         })
     }
@@ -283,71 +373,92 @@ impl RosNode {
 
     /// A publisher of `M` on topic `name` (`~/x`: the node's private `<node>/x`; remapped, in
     /// the namespace), default QoS.
-    pub fn publisher<M: RosMessage>(
-        &mut self,
-        name: &str,
-    ) -> Result<ros2_client::Publisher<M>, RosError> {
-        let topic = self.topic::<M>(name)?;
-        self.node
-            .create_publisher::<M>(&topic, Some(qos::publisher()))
-            .map_err(dds_err(format!("publisher {name}")))
+    pub fn publisher<M: RosMessageBound>(&mut self, name: &str) -> Result<Publisher<M>, RosError> {
+        self.publisher_with(name, qos::publisher(), false)
     }
 
     /// A latched publisher of `M` on topic `name` ([`qos::latched`]: reliable, transient
     /// local, keep last 1), for state a late subscriber must still get.
-    pub fn latched_publisher<M: RosMessage>(
+    pub fn latched_publisher<M: RosMessageBound>(
         &mut self,
         name: &str,
-    ) -> Result<ros2_client::Publisher<M>, RosError> {
+    ) -> Result<Publisher<M>, RosError> {
+        self.publisher_with(name, qos::latched(), true)
+    }
+
+    fn publisher_with<M: RosMessageBound>(
+        &mut self,
+        name: &str,
+        qos: ros2_client::QosProfile,
+        latched: bool,
+    ) -> Result<Publisher<M>, RosError> {
         let topic = self.topic::<M>(name)?;
-        self.node
-            .create_publisher::<M>(&topic, Some(qos::latched()))
-            .map_err(dds_err(format!("publisher {name}")))
+        let dds = self
+            .node
+            .create_publisher::<M>(&topic, Some(qos))
+            .map_err(dds_err(format!("publisher {name}")))?;
+        Publisher::new(
+            dds,
+            self.bus.as_deref(),
+            &self.resolve(name)?.to_string(),
+            latched,
+        )
     }
 
     /// A subscription to `M` on topic `name` (remapped, in the namespace), default QoS.
-    pub fn subscription<M: RosMessage + 'static>(
+    pub fn subscription<M: RosMessageBound>(
         &mut self,
         name: &str,
-    ) -> Result<ros2_client::Subscription<M>, RosError> {
-        self.subscription_with(name, None)
+    ) -> Result<Subscription<M>, RosError> {
+        self.subscription_with(name, None, 10, false)
     }
 
     /// A subscription to `/clock`-like state `M` on topic `name` with [`qos::clock`] (best
     /// effort: it matches best-effort and reliable publishers alike).
-    pub fn best_effort_subscription<M: RosMessage + 'static>(
+    pub fn best_effort_subscription<M: RosMessageBound>(
         &mut self,
         name: &str,
-    ) -> Result<ros2_client::Subscription<M>, RosError> {
-        self.subscription_with(name, Some(qos::clock()))
+    ) -> Result<Subscription<M>, RosError> {
+        self.subscription_with(name, Some(qos::clock()), 100, false)
     }
 
     /// A subscription to latched state `M` on topic `name` (reliable, transient local, keep
     /// last 1): it gets the last message published before it joined.
-    pub fn latched_subscription<M: RosMessage + 'static>(
+    pub fn latched_subscription<M: RosMessageBound>(
         &mut self,
         name: &str,
-    ) -> Result<ros2_client::Subscription<M>, RosError> {
-        self.subscription_with(name, Some(qos::latched()))
+    ) -> Result<Subscription<M>, RosError> {
+        self.subscription_with(name, Some(qos::latched()), 1, true)
     }
 
-    fn subscription_with<M: RosMessage + 'static>(
+    /// `depth`: the in-process queue's, as the QoS's keep last.
+    fn subscription_with<M: RosMessageBound>(
         &mut self,
         name: &str,
         qos: Option<ros2_client::QosProfile>,
-    ) -> Result<ros2_client::Subscription<M>, RosError> {
+        depth: usize,
+        latched: bool,
+    ) -> Result<Subscription<M>, RosError> {
         let topic = self.topic::<M>(name)?;
-        self.node
+        let dds = self
+            .node
             .create_subscription::<M>(&topic, qos)
-            .map_err(dds_err(format!("subscription {name}")))
+            .map_err(dds_err(format!("subscription {name}")))?;
+        Subscription::new(
+            dds,
+            self.bus.as_deref(),
+            &self.resolve(name)?.to_string(),
+            depth,
+            latched,
+        )
     }
 
     /// The next message of `sub` (topic `topic`), or `None` after `timeout` so that the
     /// caller can look at its stop flag. An unreadable message is logged, naming the topic,
     /// and skipped (`None`).
-    pub async fn take_within<M: RosMessage + 'static>(
+    pub async fn take_within<M: RosMessageBound>(
         &self,
-        sub: &ros2_client::Subscription<M>,
+        sub: &Subscription<M>,
         topic: &str,
         timeout: std::time::Duration,
     ) -> Option<M> {

@@ -33,6 +33,9 @@ mod mjcf;
 mod mjmodel;
 mod sim;
 
+/// The ROS 2 node (feature `node`): [`node::run`] alone in its process or composed.
+#[cfg(feature = "node")]
+pub mod node;
 pub use backend::SimBackend;
 pub use compensation::{
     compensated_targets_rad, static_compensation_rad, static_foot_loads, static_torques_nm,

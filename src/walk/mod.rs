@@ -68,6 +68,8 @@ pub struct WalkOptions {
     /// `~/pause` true, each released by `~/pause` false [`ESTOP_HOLD_S`] later. Not with
     /// `estop_at_s`.
     pub pause_at_s: Vec<f64>,
+    /// Run gait_planner, ik_solver and joint_bridge in one process (`biped compose`).
+    pub composed: bool,
 }
 
 impl WalkOptions {
@@ -423,7 +425,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         )?),
         None => None,
     };
-    let mut fleet = Fleet::new(LaunchOptions {
+    let options = LaunchOptions {
         backend: "sim".into(),
         robot: o.robot.clone(),
         leg_map: o.leg_map.clone(),
@@ -435,13 +437,12 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         serial: Default::default(),
         // A walk is a measurement: a node that dies fails it.
         respawn: None,
-    })?;
-    for node in [
-        "joint_bridge",
-        "ik_solver",
-        "gait_planner",
-        "robot_state_publisher",
-    ] {
+        composed: o.composed,
+    };
+    // The simulator last, once the planner has the walk command (below).
+    let nodes = options.nodes();
+    let mut fleet = Fleet::new(options)?;
+    for node in nodes.into_iter().filter(|n| *n != "sim_bridge") {
         fleet.spawn(node)?;
     }
 

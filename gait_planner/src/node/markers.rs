@@ -1,8 +1,8 @@
 //! `gait/markers`: a tick's balance ([`gait_planner::BalanceView`]) as RViz / Foxglove
 //! markers, in the walk's frame (`odom`), on the floor.
 
+use crate::BalanceView;
 use biped_msgs::msg::{ColorRGBA, Header, Marker, MarkerArray, Point};
-use gait_planner::BalanceView;
 use ik_solver::Side;
 
 /// Slightly above the floor, so the floor's grid does not hide the lines.

@@ -21,20 +21,14 @@ use std::time::Duration;
 use anyhow::Context as _;
 use biped_msgs::msg::{Header, JointState, StringMsg, TFMessage, Time, TransformStamped};
 use ik_solver::{FrameTransform, FrameTree, RobotModel};
-use node_runtime::{NodeSetup, RosNode};
+use node_runtime::{Host, NodeSetup, RosNode};
 use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
 const PREFIX_PARAM: &str = "frame_prefix";
 
 fn main() -> ExitCode {
-    match run() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("robot_state_publisher: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    node_runtime::node_main("robot_state_publisher", run)
 }
 
 /// The frames as a TF message, each stamped `stamp`, link names prefixed.
@@ -54,8 +48,7 @@ fn tf_message(frames: &[FrameTransform<'_>], stamp: Time, prefix: &str) -> TFMes
     }
 }
 
-fn run() -> anyhow::Result<()> {
-    let setup = NodeSetup::from_env("robot_state_publisher")?;
+fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -83,8 +76,13 @@ fn run() -> anyhow::Result<()> {
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
     .collect();
-    let mut ros = RosNode::start(setup, &declared, Some(node_runtime::read_at_startup()))?;
-    let stop = node_runtime::shutdown_flag()?;
+    let mut ros = RosNode::start(
+        host,
+        setup,
+        &declared,
+        Some(node_runtime::read_at_startup()),
+    )?;
+    let stop = host.stop_flag();
     let description_pub = ros.latched_publisher::<StringMsg>("robot_description")?;
     let static_pub = ros.latched_publisher::<TFMessage>("/tf_static")?;
     let tf_pub = ros.publisher::<TFMessage>("/tf")?;

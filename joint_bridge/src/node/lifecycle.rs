@@ -6,15 +6,16 @@
 
 use std::cell::Cell;
 
+use crate::managed::{self, ManagedState, ManagedTransition};
+use crate::{Backend, JointBridge};
 use biped_msgs::msg::{LifecycleState, Transition, TransitionDescription, TransitionEvent};
 use biped_msgs::srv::{
     ChangeState, ChangeStateRequest, ChangeStateResponse, GetAvailableTransitions,
     GetAvailableTransitionsResponse, GetState, GetStateResponse, TriggerRequest,
 };
-use joint_bridge::managed::{self, ManagedState, ManagedTransition};
-use joint_bridge::{Backend, JointBridge};
+use node_runtime::Publisher;
 use node_runtime::RosNode;
-use ros2_client::{Publisher, Server};
+use ros2_client::Server;
 
 /// The lifecycle servers, the transition event publisher and the managed state.
 pub struct LifecycleServices {

@@ -3,8 +3,8 @@
 
 use std::collections::BTreeMap;
 
-use joint_bridge::serial::{Calibration, Protocol, SerialBackend, SerialConfig};
-use joint_bridge::{Backoff, JointSpec};
+use crate::serial::{Calibration, Protocol, SerialBackend, SerialConfig};
+use crate::{Backoff, JointSpec};
 use node_runtime::NodeSetup;
 use ros2_client::ParameterValue;
 

@@ -14,9 +14,9 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+use crate::{Backend, BackendError, JointSpec, Reading};
 use biped_msgs::msg::{Header, JointState, Time};
-use joint_bridge::{Backend, BackendError, JointSpec, Reading};
-use ros2_client::{Publisher, Subscription};
+use node_runtime::{Publisher, Subscription};
 
 const NAME: &str = "sim";
 

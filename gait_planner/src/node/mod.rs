@@ -41,24 +41,23 @@
 
 mod markers;
 
-use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 
+use crate::pause::PlanClock;
+use crate::standing::STANDING_TOLERANCE_RAD;
+use crate::{
+    GaitParams, GaitPlanner, GaitSample, PhaseKind, StandGuard, Standing, StartQueue, Stride,
+    Velocity, VelocityFollower, WalkRequest,
+};
 use anyhow::Context as _;
 use biped_msgs::msg::{
     AnkleTargets, BoolMsg, Covariance6, GaitPhase, Header, JointState, MarkerArray, Odometry,
     Point, Pose, PoseWithCovariance, TFMessage, Twist, TwistWithCovariance, Vector3, WalkCommand,
 };
 use biped_msgs::srv::{SetBool, TriggerResponse};
-use gait_planner::pause::PlanClock;
-use gait_planner::standing::STANDING_TOLERANCE_RAD;
-use gait_planner::{
-    GaitParams, GaitPlanner, GaitSample, PhaseKind, StandGuard, Standing, StartQueue, Stride,
-    Velocity, VelocityFollower, WalkRequest,
-};
 use ik_solver::{AnkleTarget, BipedModel, LegOdometry};
-use node_runtime::{NodeSetup, RosNode, TickSource};
+use node_runtime::{Host, NodeSetup, RosNode, TickSource};
 use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
@@ -67,18 +66,8 @@ const LEG_MAP_PARAM: &str = "leg_map_file";
 const ODOM_TF_PARAM: &str = "publish_odom_tf";
 const STAND_PARAM: &str = "stand_at_start";
 
-fn main() -> ExitCode {
-    match run() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("gait_planner: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
 /// What a timing search off the control loop answers: the checked planner, or why not.
-type SearchResult = Result<GaitPlanner, gait_planner::GaitError>;
+type SearchResult = Result<GaitPlanner, crate::GaitError>;
 
 /// Runs [`GaitPlanner::new`] for `params` (its timing search, 0.3-1.2 s) on its own thread,
 /// for the walk command `msg` that waits for it; `None` (logged) if no thread starts.
@@ -484,8 +473,8 @@ fn to_msgs(
 
 fn publish(
     ros: &RosNode,
-    targets_pub: &ros2_client::Publisher<AnkleTargets>,
-    phase_pub: &ros2_client::Publisher<GaitPhase>,
+    targets_pub: &node_runtime::Publisher<AnkleTargets>,
+    phase_pub: &node_runtime::Publisher<GaitPhase>,
     (phase, targets): &(GaitPhase, Option<AnkleTargets>),
 ) {
     if let Some(targets) = targets
@@ -501,8 +490,9 @@ fn publish(
     }
 }
 
-fn run() -> anyhow::Result<()> {
-    let setup = NodeSetup::from_env("gait_planner")?;
+/// Runs the node with `setup` (its arguments and parameters) on `host` until the host
+/// stops: alone in its process (the `gait_planner` binary) or composed with others in one.
+pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -566,8 +556,8 @@ fn run() -> anyhow::Result<()> {
         }
     };
     let declared = declared(&params, &robot_file, &leg_map_file, odom_tf, stand_at_start)?;
-    let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
-    let stop = node_runtime::shutdown_flag()?;
+    let mut ros = RosNode::start(host, setup, &declared, Some(Box::new(check)))?;
+    let stop = host.stop_flag();
     let phase_pub = ros.publisher::<GaitPhase>("gait/phase")?;
     let targets_pub = ros.publisher::<AnkleTargets>("gait/ankle_targets")?;
     let cmd_vel = ros.subscription::<Twist>("cmd_vel")?;

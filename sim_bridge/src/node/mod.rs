@@ -38,10 +38,10 @@
 //! at zero joint angles (straight legs), servos on.
 
 use std::collections::{BTreeMap, HashMap};
-use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
+use crate::{JointMap, Sim, SimConfig};
 use anyhow::Context as _;
 use biped_msgs::msg::{
     Clock, ColorRGBA, Header, Imu, JointState, Marker, MarkerArray, Point, Point32, PointStamped,
@@ -49,9 +49,9 @@ use biped_msgs::msg::{
     TransformStamped,
 };
 use ik_solver::LegRoleMap;
-use node_runtime::{NodeSetup, RosNode};
-use ros2_client::{ParameterValue, Publisher};
-use sim_bridge::{JointMap, Sim, SimConfig};
+use node_runtime::Publisher;
+use node_runtime::{Host, NodeSetup, RosNode};
+use ros2_client::ParameterValue;
 
 const SIM_PARAMS: [&str; 8] = [
     "kp_nm_per_rad",
@@ -73,16 +73,6 @@ const NODE_PARAMS: [&str; 8] = [
     "clock_rate_hz",
     "world_frame",
 ];
-
-fn main() -> ExitCode {
-    match run() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("sim_bridge: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
-}
 
 /// The simulator settings from the node's parameters (defaults: [`SimConfig::default`]).
 fn sim_config(setup: &NodeSetup) -> anyhow::Result<SimConfig> {
@@ -265,8 +255,9 @@ impl Outputs {
     }
 }
 
-fn run() -> anyhow::Result<()> {
-    let setup = NodeSetup::from_env("sim_bridge")?;
+/// Runs the node with `setup` (its arguments and parameters) on `host` until the host
+/// stops: alone in its process (the `sim_bridge` binary) or composed with others in one.
+pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -378,8 +369,13 @@ fn run() -> anyhow::Result<()> {
     ] {
         declared.insert(k.into(), ParameterValue::Double(v));
     }
-    let mut ros = RosNode::start(setup, &declared, Some(node_runtime::read_at_startup()))?;
-    let stop = node_runtime::shutdown_flag()?;
+    let mut ros = RosNode::start(
+        host,
+        setup,
+        &declared,
+        Some(node_runtime::read_at_startup()),
+    )?;
+    let stop = host.stop_flag();
     let commands = ros.subscription::<JointState>("sim/joint_commands")?;
     let out = Outputs {
         joint_states: ros.publisher::<JointState>("joint_states")?,

@@ -10,28 +10,17 @@
 //! Parameters: `robot_description_file` (URDF path; empty for the built-in robot).
 
 use std::collections::BTreeMap;
-use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
+use crate::{AnkleTarget, BipedModel, Side};
 use biped_msgs::msg::{AnkleTargets, JointState};
-use ik_solver::{AnkleTarget, BipedModel, Side};
 use nalgebra::Vector3;
-use node_runtime::{NodeSetup, RosNode};
+use node_runtime::{Host, NodeSetup, RosNode};
 use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
 const LEG_MAP_PARAM: &str = "leg_map_file";
-
-fn main() -> ExitCode {
-    match run() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("ik_solver: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
-}
 
 /// Solves one message into a joint command; `Err` names the non-finite field.
 fn solve(
@@ -62,8 +51,9 @@ fn solve(
     Ok((js, issues.iter().map(|i| i.to_string()).collect()))
 }
 
-fn run() -> anyhow::Result<()> {
-    let setup = NodeSetup::from_env("ik_solver")?;
+/// Runs the node with `setup` (its arguments and parameters) on `host` until the host
+/// stops: alone in its process (the `ik_solver` binary) or composed with others in one.
+pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -105,8 +95,8 @@ fn run() -> anyhow::Result<()> {
             Ok(())
         }
     };
-    let mut ros = RosNode::start(setup, &declared, Some(Box::new(check)))?;
-    let stop = node_runtime::shutdown_flag()?;
+    let mut ros = RosNode::start(host, setup, &declared, Some(Box::new(check)))?;
+    let stop = host.stop_flag();
     let sub = ros.subscription::<AnkleTargets>("gait/ankle_targets")?;
     let publisher = ros.publisher::<JointState>("joint_commands")?;
     let executor = ros.executor()?;

@@ -48,27 +48,26 @@ mod serial_setup;
 mod sim_link;
 
 use std::collections::BTreeMap;
-use std::process::ExitCode;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
+use crate::managed::ManagedState;
+use crate::{
+    Backend, Backoff, BridgeConfig, Event, GyroDamping, JointBridge, JointSpec, Lifecycle,
+    MockBackend, Operator, SagCompensation, TimeoutAction,
+};
 use biped_msgs::msg::{
     BoolMsg, DiagnosticArray, DiagnosticStatus, Header, Imu, JointState, KeyValue,
 };
 use biped_msgs::srv::{SetBool, SetBoolRequest, Trigger, TriggerRequest, TriggerResponse};
 use ik_solver::BipedModel;
-use joint_bridge::managed::ManagedState;
-use joint_bridge::{
-    Backend, Backoff, BridgeConfig, Event, GyroDamping, JointBridge, JointSpec, Lifecycle,
-    MockBackend, Operator, SagCompensation, TimeoutAction,
-};
-use node_runtime::{NodeSetup, RosNode, Tick, TickSource};
+use node_runtime::{Host, NodeSetup, RosNode, Tick, TickSource};
 use ros2_client::ParameterValue;
 use smol::future::FutureExt as _;
 
-use crate::lifecycle::LifecycleServices;
-use crate::serial_setup::{SerialParams, in_range};
-use crate::sim_link::{SimLink, SimLinkHandle};
+use lifecycle::LifecycleServices;
+use serial_setup::{SerialParams, in_range};
+use sim_link::{SimLink, SimLinkHandle};
 
 /// The default of `estop_follow_s`: long enough for the gait planner's pause brake
 /// (`pause_brake_time_s`, at most 0.25 s for the timings `biped plan --fastest` finds) plus
@@ -94,18 +93,9 @@ const PARAMS: [&str; 16] = [
     "estop_follow_s",
 ];
 
-fn main() -> ExitCode {
-    match run() {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("joint_bridge: error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
-}
-
-fn run() -> anyhow::Result<()> {
-    let setup = NodeSetup::from_env("joint_bridge")?;
+/// Runs the node with `setup` (its arguments and parameters) on `host` until the host
+/// stops: alone in its process (the `joint_bridge` binary) or composed with others in one.
+pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -277,8 +267,13 @@ fn run() -> anyhow::Result<()> {
         ("autostart".to_string(), ParameterValue::Boolean(autostart)),
     ]);
     declared.extend(serial.declared());
-    let mut ros = RosNode::start(setup, &declared, Some(node_runtime::read_at_startup()))?;
-    let stop = node_runtime::shutdown_flag()?;
+    let mut ros = RosNode::start(
+        host,
+        setup,
+        &declared,
+        Some(node_runtime::read_at_startup()),
+    )?;
+    let stop = host.stop_flag();
     let sub = ros.subscription::<JointState>("joint_commands")?;
     let mut ticks = TickSource::new(&mut ros, rate_hz)?;
     let simulated = ticks.simulated();
@@ -686,7 +681,7 @@ impl OperatorServices {
 }
 
 /// The next joint command waiting, if any (unreadable ones are dropped with a warning).
-fn take_command(sub: &ros2_client::Subscription<JointState>, ros: &RosNode) -> Option<JointState> {
+fn take_command(sub: &node_runtime::Subscription<JointState>, ros: &RosNode) -> Option<JointState> {
     loop {
         match sub.take() {
             Ok(Some((cmd, _))) => return Some(cmd),
@@ -707,7 +702,7 @@ fn take_command(sub: &ros2_client::Subscription<JointState>, ros: &RosNode) -> O
 fn imu_due(subscribed: bool, newest_imu_s: f64, tick_s: f64) -> bool {
     subscribed
         && newest_imu_s < tick_s - 1e-9
-        && tick_s - newest_imu_s <= joint_bridge::GYRO_MAX_AGE_S + 1e-9
+        && tick_s - newest_imu_s <= crate::GYRO_MAX_AGE_S + 1e-9
 }
 
 #[cfg(test)]

@@ -1,0 +1,190 @@
+//! Nodes composed in one process ([`Host::composed`]): a message between them arrives once,
+//! in-process (not a second time through DDS), and peers outside the process still send
+//! and receive on the same topics through DDS. Each test re-runs itself in a private
+//! network namespace with only loopback (root), on its own ROS_DOMAIN_ID (190-191), DDS
+//! discovery restricted to the host.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+use biped_msgs::msg::StringMsg;
+use node_runtime::{Host, NodeSetup, RosNode, Subscription};
+
+const INSIDE: &str = "BIPED_TEST_IN_NETNS";
+
+/// Runs the calling test again in a private network namespace; true inside it (go on),
+/// false outside (its result is asserted here).
+fn in_private_network(test: &str, domain_id: u32) -> bool {
+    if std::env::var_os(INSIDE).is_some() {
+        return true;
+    }
+    let out = std::process::Command::new("unshare")
+        .args([
+            "-n",
+            "sh",
+            "-c",
+            "ip link set lo up && ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo || exit 90\nexec \"$@\"",
+            "sh",
+        ])
+        .arg(std::env::current_exe().unwrap())
+        .args([test, "--exact", "--nocapture", "--test-threads=1"])
+        .env(INSIDE, "1")
+        .env("ROS_DOMAIN_ID", domain_id.to_string())
+        .env("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        .env_remove("ROS_LOCALHOST_ONLY")
+        .output()
+        .expect("unshare runs (root needed for a private network namespace)");
+    let text = format!(
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        out.status.success(),
+        "{test} in its network namespace:\n{text}"
+    );
+    assert!(text.contains("1 passed"), "{test} did not run:\n{text}");
+    false
+}
+
+fn node(host: &Host, name: &str) -> RosNode {
+    let setup = NodeSetup::from_args(Vec::<String>::new(), name).unwrap();
+    RosNode::start(host, setup, &BTreeMap::new(), None).unwrap()
+}
+
+fn composed() -> Host {
+    Host::composed(Arc::new(AtomicBool::new(false))).unwrap()
+}
+
+fn text(s: &str) -> StringMsg {
+    StringMsg { data: s.to_owned() }
+}
+
+/// Everything `sub` gets within `quiet` of the last message (or of the call).
+fn drain(sub: &Subscription<StringMsg>, quiet: Duration) -> Vec<String> {
+    let mut got = Vec::new();
+    let mut last = Instant::now();
+    while last.elapsed() < quiet {
+        match sub.take().unwrap() {
+            Some((m, _)) => {
+                got.push(m.data);
+                last = Instant::now();
+            }
+            None => std::thread::sleep(Duration::from_millis(2)),
+        }
+    }
+    got
+}
+
+/// Publishes `probe` until `sub` has it (DDS discovery between the two sides is done).
+fn until_heard(publish: impl Fn(StringMsg), sub: &Subscription<StringMsg>, probe: &str) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    loop {
+        publish(text(probe));
+        if drain(sub, Duration::from_millis(100))
+            .iter()
+            .any(|m| m == probe)
+        {
+            return;
+        }
+        assert!(Instant::now() < deadline, "`{probe}` not heard within 30 s");
+    }
+}
+
+#[test]
+fn a_composed_subscriber_gets_each_message_once_from_its_process_and_from_outside() {
+    if !in_private_network(
+        "a_composed_subscriber_gets_each_message_once_from_its_process_and_from_outside",
+        190,
+    ) {
+        return;
+    }
+    // Two nodes composed in this "process", and an outside peer: another participant
+    // with its own bus, as another process would be.
+    let (inside, outside) = (composed(), composed());
+    let (mut talker, mut listener, mut peer) = (
+        node(&inside, "talker"),
+        node(&inside, "listener"),
+        node(&outside, "peer"),
+    );
+    let talk = talker.publisher::<StringMsg>("chatter").unwrap();
+    let listen = listener.subscription::<StringMsg>("chatter").unwrap();
+    let peer_listen = peer.subscription::<StringMsg>("chatter").unwrap();
+    let peer_talk = peer.publisher::<StringMsg>("chatter").unwrap();
+
+    // In-process delivery needs no discovery: the first message is there at once.
+    talk.publish(text("first")).unwrap();
+    assert_eq!(
+        listen.take().unwrap().map(|(m, _)| m.data),
+        Some("first".to_owned())
+    );
+    // Both directions over DDS matched, and the listener's reader has had time to match
+    // the talker's writer too (same participant).
+    until_heard(|m| talk.publish(m).unwrap(), &peer_listen, "probe in");
+    until_heard(|m| peer_talk.publish(m).unwrap(), &listen, "probe out");
+    std::thread::sleep(Duration::from_millis(500));
+    drain(&listen, Duration::from_millis(300));
+    drain(&peer_listen, Duration::from_millis(300));
+
+    let ours: Vec<String> = (0..50).map(|k| format!("in {k}")).collect();
+    let theirs: Vec<String> = (0..20).map(|k| format!("out {k}")).collect();
+    // Taken as they come (the queues keep the last 10, as the QoS's history).
+    let (mut got, mut peer_got) = (Vec::new(), Vec::new());
+    for k in 0..50 {
+        talk.publish(text(&ours[k])).unwrap();
+        if k < 20 {
+            peer_talk.publish(text(&theirs[k])).unwrap();
+        }
+        got.extend(drain(&listen, Duration::from_millis(5)));
+        peer_got.extend(drain(&peer_listen, Duration::from_millis(5)));
+    }
+    got.extend(drain(&listen, Duration::from_secs(1)));
+    peer_got.extend(drain(&peer_listen, Duration::from_secs(1)));
+    let from = |prefix: &str| -> Vec<String> {
+        got.iter()
+            .filter(|m| m.starts_with(prefix))
+            .cloned()
+            .collect()
+    };
+    // Each once, in order: the DDS copy of the talker's messages is dropped.
+    assert_eq!(from("in "), ours, "from the process: {got:?}");
+    assert_eq!(from("out "), theirs, "from outside: {got:?}");
+    // The outside peer gets the talker's messages through DDS, each once.
+    let peer_in: Vec<String> = peer_got
+        .iter()
+        .filter(|m| m.starts_with("in "))
+        .cloned()
+        .collect();
+    assert_eq!(peer_in, ours, "the outside peer: {peer_got:?}");
+}
+
+#[test]
+fn a_late_latched_subscriber_in_the_process_gets_the_last_state_once() {
+    if !in_private_network(
+        "a_late_latched_subscriber_in_the_process_gets_the_last_state_once",
+        191,
+    ) {
+        return;
+    }
+    let inside = composed();
+    let mut owner = node(&inside, "owner");
+    let state = owner.latched_publisher::<StringMsg>("state").unwrap();
+    state.publish(text("state 1")).unwrap();
+    state.publish(text("state 2")).unwrap();
+    let mut late = node(&inside, "late");
+    let sub = late.latched_subscription::<StringMsg>("state").unwrap();
+    // Long enough for the DDS transient-local copy from the same participant to arrive too.
+    std::thread::sleep(Duration::from_secs(2));
+    assert_eq!(
+        drain(&sub, Duration::from_millis(500)),
+        vec!["state 2".to_owned()]
+    );
+    // Another type on the same name in the process is refused, naming the topic.
+    let err = late
+        .subscription::<biped_msgs::msg::BoolMsg>("state")
+        .expect_err("String and Bool on one topic");
+    assert!(format!("{err}").contains("topic `/state`"), "{err}");
+}
