@@ -6,7 +6,9 @@
 //! 3. `biped walk`: the whole fleet (gait_planner, ik_solver, joint_bridge, sim_bridge as
 //!    separate processes, DDS over loopback) in lockstep, simulated time only advancing once
 //!    every node has answered each 10 ms tick; its own report's figure (from the first
-//!    `/clock` on: process start-up and discovery excluded).
+//!    `/clock` on: process start-up and discovery excluded);
+//! 4. `biped walk --composed`: the same with gait_planner, ik_solver and joint_bridge in one
+//!    process (`biped compose`, in-process delivery between them), sim_bridge apart.
 //!
 //! `cargo build --release --workspace && cargo bench --bench walk_rtf` (the fleet runs in a
 //! private network namespace: root, `unshare -n`). Prints a Markdown table.
@@ -81,51 +83,70 @@ fn main() -> ExitCode {
         );
         return ExitCode::FAILURE;
     }
-    let mut fleet = Vec::new();
-    let mut fleet_wall = Vec::new();
-    for run in 0..RUNS {
-        let out = std::env::temp_dir().join(format!("biped-rtf-{}-{run}", std::process::id()));
-        let status = Command::new("unshare")
-            .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
-            .arg(&biped)
-            .args(["walk", "--steps", &STEPS.to_string(), "--out"])
-            .arg(&out)
-            .env("ROS_DOMAIN_ID", "90")
-            .stdout(std::process::Stdio::null())
-            .status()
-            .expect("unshare runs (root needed)");
-        if !status.success() {
-            eprintln!("biped walk failed; logs in {}", out.join("logs").display());
-            return ExitCode::FAILURE;
+    // (variant, its extra arguments) → (real-time factors, wall time per tick).
+    let mut fleets: Vec<(&str, Vec<f64>, Vec<f64>)> = Vec::new();
+    for (what, extra) in [
+        ("`biped walk`: the fleet over DDS in lockstep", &[][..]),
+        (
+            "`biped walk --composed`: planner, IK and bridge in one process, in lockstep",
+            &["--composed"][..],
+        ),
+    ] {
+        let (mut rtfs, mut walls) = (Vec::new(), Vec::new());
+        for run in 0..RUNS {
+            let out = std::env::temp_dir().join(format!("biped-rtf-{}-{run}", std::process::id()));
+            let status = Command::new("unshare")
+                .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
+                .arg(&biped)
+                .args(["walk", "--steps", &STEPS.to_string(), "--out"])
+                .arg(&out)
+                .args(extra)
+                .env("ROS_DOMAIN_ID", "90")
+                .stdout(std::process::Stdio::null())
+                .status()
+                .expect("unshare runs (root needed)");
+            if !status.success() {
+                eprintln!("biped walk failed; logs in {}", out.join("logs").display());
+                return ExitCode::FAILURE;
+            }
+            let report: serde_json::Value = serde_json::from_str(
+                &std::fs::read_to_string(out.join("report.json")).expect("report.json"),
+            )
+            .expect("report is JSON");
+            let rtf = report["real_time_factor"].as_f64().unwrap_or(0.0);
+            rtfs.push(rtf);
+            walls.push(0.01 / rtf);
+            let _ = std::fs::remove_dir_all(&out);
         }
-        let report: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(out.join("report.json")).expect("report.json"),
-        )
-        .expect("report is JSON");
-        let rtf = report["real_time_factor"].as_f64().unwrap_or(0.0);
-        fleet.push(rtf);
-        fleet_wall.push(0.01 / rtf);
-        let _ = std::fs::remove_dir_all(&out);
+        fleets.push((what, rtfs, walls));
     }
     println!(
         "{} steps ({plan_s:.1} s of walk), median of {RUNS} runs, 1 kHz physics, 100 Hz control\n",
         STEPS
     );
-    println!("| what runs | real-time factor | wall time per 10 ms tick |");
-    println!("|---|---:|---:|");
+    println!("| what runs | real-time factor | wall time per 10 ms tick | of bare physics |");
+    println!("|---|---:|---:|---:|");
+    let bare = median(bare);
     for (what, rtf) in [
-        ("bare physics (MuJoCo, targets held)", median(bare)),
+        ("bare physics (MuJoCo, targets held)", bare),
         (
             "plan played in-process (targets every tick, measures)",
             median(played),
         ),
     ] {
-        println!("| {what} | {rtf:.1}x | {:.3} ms |", 10.0 / rtf);
+        println!(
+            "| {what} | {rtf:.1}x | {:.3} ms | {:.2} |",
+            10.0 / rtf,
+            rtf / bare
+        );
     }
-    println!(
-        "| `biped walk`: the fleet over DDS in lockstep | {:.1}x | {:.3} ms |",
-        median(fleet),
-        median(fleet_wall) * 1e3
-    );
+    for (what, rtfs, walls) in fleets {
+        let rtf = median(rtfs);
+        println!(
+            "| {what} | {rtf:.1}x | {:.3} ms | {:.2} |",
+            median(walls) * 1e3,
+            rtf / bare
+        );
+    }
     ExitCode::SUCCESS
 }
