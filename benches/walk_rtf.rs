@@ -7,8 +7,8 @@
 //!    separate processes, DDS over loopback) in lockstep, simulated time only advancing once
 //!    every node has answered each 10 ms tick; its own report's figure (from the first
 //!    `/clock` on: process start-up and discovery excluded);
-//! 4. `biped walk --composed`: the same with gait_planner, ik_solver and joint_bridge in one
-//!    process (`biped compose`, in-process delivery between them), sim_bridge apart.
+//! 4. `biped walk --composed`: the same with gait_planner, ik_solver, joint_bridge and
+//!    sim_bridge in one process (`biped compose`, in-process delivery between them).
 //!
 //! `cargo build --release --workspace && cargo bench --bench walk_rtf` (the fleet runs in a
 //! private network namespace: root, `unshare -n`). Prints a Markdown table.
@@ -88,7 +88,7 @@ fn main() -> ExitCode {
     for (what, extra) in [
         ("`biped walk`: the fleet over DDS in lockstep", &[][..]),
         (
-            "`biped walk --composed`: planner, IK and bridge in one process, in lockstep",
+            "`biped walk --composed`: the four nodes in one process, in lockstep",
             &["--composed"][..],
         ),
     ] {

@@ -64,10 +64,10 @@ pub struct LaunchOptions {
 /// The name of the process that runs the composed nodes (its log: `composed.log`).
 pub const COMPOSED: &str = "composed";
 
-/// The nodes `--composed` runs in one process, in start order: the control pipeline.
-/// robot_state_publisher stays apart, as the ROS tool it stands in for, and so does the
-/// simulator, as the robot it stands in for (and `biped walk` starts it last).
-pub const COMPOSABLE_NODES: [&str; 3] = ["joint_bridge", "ik_solver", "gait_planner"];
+/// The nodes `--composed` runs in one process, in start order: the control pipeline and
+/// the simulator (with `--backend sim`), as simulators host their robot's controllers.
+/// robot_state_publisher stays apart, as the ROS tool it stands in for.
+pub const COMPOSABLE_NODES: [&str; 4] = ["joint_bridge", "ik_solver", "gait_planner", "sim_bridge"];
 
 /// When `biped launch` restarts a node that died (killed, crashed): after `first_delay_s`,
 /// doubled for each death that comes within `quick_s` of the node's (re)start, up to
@@ -240,6 +240,23 @@ impl LaunchOptions {
     /// sent before it starts is taken on simulated time.
     /// Composed, the process of [`COMPOSED`] stands for all the nodes it runs.
     pub fn nodes(&self) -> Vec<&'static str> {
+        let mut n = self.separate_nodes();
+        if self.composed {
+            n.retain(|node| !COMPOSABLE_NODES.contains(node));
+            n.insert(0, COMPOSED);
+        }
+        n
+    }
+
+    /// The nodes the process of [`COMPOSED`] runs, in start order.
+    pub fn composed_nodes(&self) -> Vec<&'static str> {
+        let mut n = self.separate_nodes();
+        n.retain(|node| COMPOSABLE_NODES.contains(node));
+        n
+    }
+
+    /// The nodes of this launch, each as its own process.
+    fn separate_nodes(&self) -> Vec<&'static str> {
         let mut n = vec![
             "joint_bridge",
             "ik_solver",
@@ -248,10 +265,6 @@ impl LaunchOptions {
         ];
         if self.backend == "sim" {
             n.push("sim_bridge");
-        }
-        if self.composed {
-            n.retain(|node| !COMPOSABLE_NODES.contains(node));
-            n.insert(0, COMPOSED);
         }
         n
     }
@@ -419,7 +432,7 @@ impl Fleet {
         let err = file.try_clone()?;
         let args = if name == COMPOSED {
             let mut args = vec!["compose".to_string()];
-            for node in COMPOSABLE_NODES {
+            for node in self.options.composed_nodes() {
                 args.extend(["--node".to_string(), node.to_string()]);
                 args.extend(self.node_args(node, restart)?);
             }

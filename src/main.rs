@@ -83,9 +83,9 @@ enum Command {
         /// Do not restart nodes: any node's exit stops the fleet.
         #[arg(long)]
         no_respawn: bool,
-        /// Run gait_planner, ik_solver and joint_bridge in one process (`biped compose`):
-        /// messages between them are delivered in-process, every topic stays on DDS for
-        /// other peers. Restarted as one.
+        /// Run gait_planner, ik_solver and joint_bridge (and sim_bridge with `--backend
+        /// sim`) in one process (`biped compose`): messages between them are delivered
+        /// in-process, every topic stays on DDS for other peers. Restarted as one.
         #[arg(long)]
         composed: bool,
     },
@@ -162,9 +162,10 @@ enum Command {
             conflicts_with = "estop_at"
         )]
         pause_at: Vec<f64>,
-        /// Run gait_planner, ik_solver and joint_bridge in one process (`biped compose`):
-        /// the lockstep tick's hops between them are in-process; the simulator stays
-        /// apart, and every topic is on DDS as without it.
+        /// Run gait_planner, ik_solver, joint_bridge and sim_bridge in one process (`biped
+        /// compose`): the lockstep tick's hops are in-process (the simulator starts paused
+        /// and is released by its `~/pause` once the walk command is in); every topic is on
+        /// DDS as without it.
         #[arg(long)]
         composed: bool,
     },

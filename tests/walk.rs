@@ -37,7 +37,7 @@ fn num(v: &Value, key: &str) -> f64 {
 /// The walk: 20 steps, default parameters, through the whole fleet, at #16's speed
 /// for the default robot (>= 0.035 m/s; 0.045 measured) with the CoP inside >= 99 % of the
 /// time, slip < 5 mm, tilt < 5 deg. Run twice, the second time with gait_planner,
-/// ik_solver and joint_bridge composed in one process (`--composed`): the lockstep runs give
+/// ik_solver, joint_bridge and sim_bridge composed in one process (`--composed`): the lockstep runs give
 /// the same report, number for number (only the wall-clock figures differ), so composition
 /// changes nothing the robot does, and `biped walk`'s own subscriber, outside that process,
 /// still gets every `gait/phase` and `joint_commands` message it draws and measures.

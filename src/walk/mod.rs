@@ -68,7 +68,8 @@ pub struct WalkOptions {
     /// `~/pause` true, each released by `~/pause` false [`ESTOP_HOLD_S`] later. Not with
     /// `estop_at_s`.
     pub pause_at_s: Vec<f64>,
-    /// Run gait_planner, ik_solver and joint_bridge in one process (`biped compose`).
+    /// Run gait_planner, ik_solver, joint_bridge and sim_bridge in one process (`biped
+    /// compose`); the simulator starts paused and is released once the walk command is in.
     pub composed: bool,
 }
 
@@ -370,6 +371,11 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
             if o.real_time { "1.0" } else { "0.0" }
         ),
     )];
+    if o.composed {
+        // The simulator starts with the other nodes in their process: it waits at t = 0
+        // until the walk command is in (step 1 below releases it).
+        node_params.push(("sim_bridge".into(), "start_paused:=true".into()));
+    }
     if let Some((scene, map_file)) = &o.scene {
         // Checked here, so a bad scene is refused before anything starts; its servos'
         // stiffness is the joint bridge's compensation stiffness.
@@ -501,6 +507,15 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
             state: StopState::Idle,
         })
     };
+    let sim_pause = if o.composed {
+        Some(service_client::<biped_msgs::srv::SetBool>(
+            &mut node,
+            "sim_bridge",
+            "pause",
+        )?)
+    } else {
+        None
+    };
     let spinner = node
         .spinner()
         .map_err(|e| anyhow::anyhow!("spinner: {e:?}"))?;
@@ -564,7 +579,28 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         {
             anyhow::bail!("the services {} were not found within 60 s", d.clients.names());
         }
-        fleet.spawn("sim_bridge")?;
+        match &sim_pause {
+            None => fleet.spawn("sim_bridge")?,
+            Some(c) => {
+                // Composed, the simulator runs already, paused at t = 0: let it go.
+                if !within_a_minute(c.wait_for_service(&node)).await {
+                    anyhow::bail!("the service /sim_bridge/pause was not found within 60 s");
+                }
+                let id = c
+                    .send_request(biped_msgs::srv::SetBoolRequest { data: false })
+                    .map_err(|e| anyhow::anyhow!("call /sim_bridge/pause: {e:?}"))?;
+                let deadline = Instant::now() + Duration::from_secs(60);
+                while !matches!(c.receive_response(), Ok(Some((got, _))) if got == id) {
+                    if let Some(why) = fleet.failed() {
+                        anyhow::bail!("{why}");
+                    }
+                    if Instant::now() > deadline {
+                        anyhow::bail!("/sim_bridge/pause did not answer within 60 s");
+                    }
+                    smol::Timer::after(Duration::from_millis(5)).await;
+                }
+            }
+        }
         println!(
             "walking {} steps in simulation (lockstep{}); the walk starts at t = {:.2} s",
             o.steps,

@@ -17,7 +17,12 @@
 //!   velocity, specific force, +9.81 m/s² up standing still; exact, covariances 0 =
 //!   unknown, REP-145), and
 //!   `/clock` (rosgraph_msgs/msg/Clock, last);
-//! - reports a fall once on `sim/fall` (std_msgs/msg/String, the reason) and `/rosout`.
+//! - reports a fall once on `sim/fall` (std_msgs/msg/String, the reason) and `/rosout`;
+//! - serves `~/pause` (std_srvs/srv/SetBool, as Gazebo's pause and unpause of physics):
+//!   `true` stops simulated time where it is (`/clock` and the states are sent again every
+//!   50 ms, the servos hold their targets), `false` lets it run on. With `start_paused` the
+//!   simulation waits at t = 0 for the first `false` (`biped walk --composed` starts it so,
+//!   then releases it once the walk command is in).
 //!
 //! Time: with `lockstep` (default) the simulation steps to t + 1/clock_rate_hz only once the
 //! joint_bridge has answered tick t (a `sim/joint_commands` stamped t or later; while waiting,
@@ -31,7 +36,8 @@
 //! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `mjcf_file` and
 //! `joint_map_file` (a MuJoCo scene of the robot and its map to the URDF's names, instead of
 //! building the simulation from the URDF; the scene then owns its physics and servos), `lockstep`
-//! (true), `real_time_factor` (1.0), `clock_rate_hz` (100), `world_frame` (`world`), and the
+//! (true), `real_time_factor` (1.0), `clock_rate_hz` (100), `world_frame` (`world`),
+//! `start_paused` (false), and the
 //! simulator settings of [`sim_bridge::SimConfig`] (`kp_nm_per_rad`, `kv_nm_s_per_rad`,
 //! `torque_limit_nm` (0 = each joint's URDF effort), `armature_kg_m2`, `timestep_s`,
 //! `friction`, `fall_tilt_deg`, `fall_height_drop_m`). The robot starts standing on the floor
@@ -48,9 +54,9 @@ use biped_msgs::msg::{
     Polygon, PolygonStamped, Pose, PoseStamped, StringMsg, TFMessage, Time, Transform,
     TransformStamped,
 };
+use biped_msgs::srv::{SetBool, TriggerResponse};
 use ik_solver::LegRoleMap;
-use node_runtime::Publisher;
-use node_runtime::{Host, NodeSetup, RosNode};
+use node_runtime::{Host, NodeSetup, Publisher, RosNode};
 use ros2_client::ParameterValue;
 
 const SIM_PARAMS: [&str; 8] = [
@@ -63,7 +69,7 @@ const SIM_PARAMS: [&str; 8] = [
     "fall_tilt_deg",
     "fall_height_drop_m",
 ];
-const NODE_PARAMS: [&str; 8] = [
+const NODE_PARAMS: [&str; 9] = [
     "robot_description_file",
     "leg_map_file",
     "mjcf_file",
@@ -72,6 +78,7 @@ const NODE_PARAMS: [&str; 8] = [
     "real_time_factor",
     "clock_rate_hz",
     "world_frame",
+    "start_paused",
 ];
 
 /// The simulator settings from the node's parameters (defaults: [`SimConfig::default`]).
@@ -279,6 +286,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     let rtf = setup.f64_param("real_time_factor", 1.0)?;
     let rate_hz = setup.f64_param("clock_rate_hz", 100.0)?;
     let world_frame = setup.str_param("world_frame", "world")?;
+    let mut paused = setup.bool_param("start_paused", false)?;
     if !(rtf.is_finite() && (0.0..=1000.0).contains(&rtf)) {
         anyhow::bail!(
             "parameter `real_time_factor` = {rtf} is out of range [0, 1000] (0 = as fast as possible)"
@@ -356,6 +364,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
             "world_frame".into(),
             ParameterValue::String(world_frame.clone()),
         ),
+        ("start_paused".into(), ParameterValue::Boolean(paused)),
     ]);
     for (k, v) in [
         ("kp_nm_per_rad", cfg.kp_nm_per_rad),
@@ -377,6 +386,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     )?;
     let stop = host.stop_flag();
     let commands = ros.subscription::<JointState>("sim/joint_commands")?;
+    let pause_srv = ros.service::<SetBool>("~/pause")?;
     let out = Outputs {
         joint_states: ros.publisher::<JointState>("joint_states")?,
         base_pose: ros.publisher::<PoseStamped>("sim/base_pose")?,
@@ -434,6 +444,30 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     out.publish(&ros, &sim, Time::from_nanos(t_ns));
     let result: anyhow::Result<()> = smol::block_on(executor.run(async {
         while !stop.load(Ordering::SeqCst) {
+            while let Ok(Some((id, req))) = pause_srv.receive_request() {
+                let said = match (paused, req.data) {
+                    (false, true) => format!("paused at t = {:.3} s", t_ns as f64 * 1e-9),
+                    (true, false) => {
+                        // A paced simulation goes on at its pace from now.
+                        if rtf > 0.0 {
+                            let since = Duration::from_secs_f64(t_ns as f64 * 1e-9 / rtf);
+                            wall0 = Instant::now().checked_sub(since).unwrap_or(wall0);
+                        }
+                        format!("running from t = {:.3} s", t_ns as f64 * 1e-9)
+                    }
+                    (true, true) => format!("already paused at t = {:.3} s", t_ns as f64 * 1e-9),
+                    (false, false) => format!("already running, t = {:.3} s", t_ns as f64 * 1e-9),
+                };
+                paused = req.data;
+                ros.info(&said);
+                let answer = TriggerResponse {
+                    success: true,
+                    message: said,
+                };
+                if let Err(e) = pause_srv.send_response(id, answer) {
+                    ros.error(&format!("~/pause: answer not sent: {e:?}"));
+                }
+            }
             // Commands: the newest targets win; names the robot lacks are reported once.
             let mut batch: Vec<JointState> = inbox.take().into_iter().collect();
             while let Ok(Some((cmd, _))) = commands.take() {
@@ -482,7 +516,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
             let answered = !lockstep || newest_answer_ns >= t_ns;
             let due = rtf == 0.0
                 || wall0.elapsed().as_secs_f64() * rtf >= (t_ns + period_ns) as f64 * 1e-9;
-            if answered && due {
+            if answered && due && !paused {
                 sim.physics_steps(steps_per_tick)?;
                 t_ns += period_ns;
                 if rtf > 0.0 {
@@ -503,13 +537,14 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
                 }
                 continue;
             }
-            if !answered && last_publish.elapsed() >= Duration::from_millis(50) {
-                // Still waiting for tick t's answer: say t again (a late peer catches up).
+            if (!answered || paused) && last_publish.elapsed() >= Duration::from_millis(50) {
+                // Still waiting for tick t's answer, or paused: say t again (a late peer
+                // catches up).
                 out.publish(&ros, &sim, Time::from_nanos(t_ns));
                 last_publish = Instant::now();
             }
             // Wait for a command, or for the wall clock when pacing.
-            let wait = if answered {
+            let wait = if answered && !paused {
                 Duration::from_secs_f64(
                     ((t_ns + period_ns) as f64 * 1e-9 / rtf.max(1e-9)
                         - wall0.elapsed().as_secs_f64())
