@@ -555,7 +555,28 @@ fn biped_launch_starts_the_fleet_and_leaves_no_process_behind() {
 /// the simulated robot in real time and walks it with a `ros2 topic pub`-style command.
 #[test]
 fn an_rclpy_peer_watches_and_walks_the_simulated_robot_in_real_time() {
-    let v = peer("sim", 60);
+    assert_watched_and_walked_in_real_time(&peer("sim", 60));
+}
+
+/// The same with `biped launch --backend sim --composed`: the four nodes in one process
+/// (`biped compose`, in-process delivery between them) look to an rclpy peer exactly as
+/// four processes do: every node found by name, every topic flowing, its walk command
+/// taken, its errors none.
+#[test]
+fn an_rclpy_peer_watches_and_walks_the_composed_simulated_robot_as_if_separate() {
+    let v = peer("sim_composed", 192);
+    assert_watched_and_walked_in_real_time(&v);
+    assert!(
+        v["launcher_stdout"]
+            .as_str()
+            .unwrap()
+            .contains("started composed"),
+        "{}",
+        v["launcher_stdout"]
+    );
+}
+
+fn assert_watched_and_walked_in_real_time(v: &Value) {
     assert_eq!(v["nodes_seen"], true, "nodes: {}", v["node_names"]);
     assert_eq!(
         v["flowing"], true,

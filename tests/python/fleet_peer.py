@@ -756,19 +756,23 @@ def scenario_supervise(bin_dir, params):
     return out
 
 
-def scenario_sim(bin_dir, params):
+def scenario_sim(bin_dir, params, composed=False):
     """`biped launch --backend sim`: the simulator in real time, watched and commanded by a
-    plain rclpy node (no use_sim_time), as a user with RViz or Foxglove would."""
+    plain rclpy node (no use_sim_time), as a user with RViz or Foxglove would. `composed`:
+    the four nodes in one process (`--composed`)."""
     from geometry_msgs.msg import PointStamped, PolygonStamped, PoseStamped
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import Imu
 
     biped = os.path.join(bin_dir, "biped")
     log_dir = os.environ.get("BIPED_TEST_LOG_DIR", "/tmp/biped-launch-test") + "-sim"
+    if composed:
+        log_dir += "-composed"
     # The observer is up first, as RViz usually is.
     peer = Peer()
     peer.spin(1.0)
-    launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--log-dir", log_dir],
+    launcher = subprocess.Popen([biped, "launch", "--backend", "sim", "--log-dir", log_dir]
+                                + (["--composed"] if composed else []),
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     STARTED.append(launcher)
     n = peer.node
@@ -815,7 +819,7 @@ def scenario_sim(bin_dir, params):
     out["joint_state_names"] = last["name"]
     out["joint_state_stamps"] = [s["t"] for s in peer.states[-50:]]
     out["clock_values"] = [c["t"] for c in clock[-400:]]
-    stop_launcher(launcher, out)
+    out["launcher_stdout"] = stop_launcher(launcher, out)
     out["rosout_errors"] = [m for m in peer.rosout if m["level"] >= 40]
     return out
 
@@ -983,7 +987,8 @@ def run_scenario(scenario, bin_dir, params):
               "lifecycle": scenario_lifecycle, "supervise": scenario_supervise, "clock": scenario_clock,
               "sim_kill": scenario_sim_kill, "discovery_off": scenario_discovery_off,
               "launch": scenario_launch,
-              "sim": scenario_sim}[scenario](bin_dir, params)
+              "sim": scenario_sim,
+              "sim_composed": lambda b, p: scenario_sim(b, p, composed=True)}[scenario](bin_dir, params)
     json.dump(result, sys.stdout)
 
 
