@@ -43,7 +43,7 @@ use support::Board;
 
 /// This test's DDS domain (no other test uses it).
 const DOMAIN_ID: u32 = 71;
-/// The joint bridge's defaults this test relies on (joint_bridge/src/node/main.rs).
+/// The joint bridge's defaults this test relies on (joint_bridge/src/node/mod.rs).
 const RAMP_S: f64 = 2.0;
 const RATE_HZ: f64 = 100.0;
 /// The URDF speed limit of every leg joint of config/biped.urdf (rad/s).
