@@ -86,7 +86,11 @@ pub fn compose(args: &[String]) -> anyhow::Result<()> {
             // The simulator's MuJoCo and the planner's searches get a main thread's stack.
             .stack_size(8 << 20)
             .spawn(move || {
-                let result = run(setup, &host);
+                // A panic is a failure like any other: the other nodes still stop (the
+                // joint bridge with torque off) and the process fails, naming the node.
+                let result =
+                    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(setup, &host)))
+                        .unwrap_or_else(|_| Err(anyhow::anyhow!("panicked (see above)")));
                 // One node gone stops the others: they are one unit to the launcher.
                 host.request_stop();
                 let _ = done.send((name, result));
@@ -106,9 +110,7 @@ pub fn compose(args: &[String]) -> anyhow::Result<()> {
         }
     }
     for t in threads {
-        if t.join().is_err() {
-            first_failure.get_or_insert_with(|| anyhow::anyhow!("a node's thread panicked"));
-        }
+        let _ = t.join();
     }
     first_failure.map_or(Ok(()), Err)
 }
