@@ -1,7 +1,7 @@
 //! Nodes composed in one process ([`Host::composed`]): a message between them arrives once,
 //! in-process (not a second time through DDS), and peers outside the process still send
 //! and receive on the same topics through DDS. Each test re-runs itself in a private
-//! network namespace with only loopback (root), on its own ROS_DOMAIN_ID (190-191), DDS
+//! network namespace with only loopback (root), on its own ROS_DOMAIN_ID (190-193), DDS
 //! discovery restricted to the host.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -187,4 +187,45 @@ fn a_late_latched_subscriber_in_the_process_gets_the_last_state_once() {
         .subscription::<biped_msgs::msg::BoolMsg>("state")
         .expect_err("String and Bool on one topic");
     assert!(format!("{err}").contains("topic `/state`"), "{err}");
+}
+
+/// An outside subscriber that joins after a composed publisher and its in-process
+/// subscriber have been talking gets what is published from then on, once discovered, and
+/// the in-process subscriber still gets each message once.
+#[test]
+fn an_outside_subscriber_that_joins_late_gets_a_composed_publisher_s_messages() {
+    if !in_private_network(
+        "an_outside_subscriber_that_joins_late_gets_a_composed_publisher_s_messages",
+        193,
+    ) {
+        return;
+    }
+    let (inside, outside) = (composed(), composed());
+    let (mut talker, mut listener) = (node(&inside, "talker"), node(&inside, "listener"));
+    let talk = talker.publisher::<StringMsg>("news").unwrap();
+    let listen = listener.subscription::<StringMsg>("news").unwrap();
+    let mut got = Vec::new();
+    for k in 0..20 {
+        talk.publish(text(&format!("alone {k}"))).unwrap();
+        got.extend(drain(&listen, Duration::from_millis(5)));
+    }
+    got.extend(drain(&listen, Duration::from_millis(500)));
+    let alone: Vec<String> = (0..20).map(|k| format!("alone {k}")).collect();
+    assert_eq!(got, alone, "in-process, each once");
+    let mut peer = node(&outside, "peer");
+    let peer_listen = peer.subscription::<StringMsg>("news").unwrap();
+    until_heard(|m| talk.publish(m).unwrap(), &peer_listen, "anyone there");
+    drain(&listen, Duration::from_millis(300));
+    // From then on both get each message once.
+    let (mut got, mut peer_got) = (Vec::new(), Vec::new());
+    for k in 0..10 {
+        talk.publish(text(&format!("both {k}"))).unwrap();
+        got.extend(drain(&listen, Duration::from_millis(5)));
+        peer_got.extend(drain(&peer_listen, Duration::from_millis(5)));
+    }
+    got.extend(drain(&listen, Duration::from_millis(500)));
+    peer_got.extend(drain(&peer_listen, Duration::from_millis(500)));
+    let both: Vec<String> = (0..10).map(|k| format!("both {k}")).collect();
+    assert_eq!(got, both, "in-process");
+    assert_eq!(peer_got, both, "outside");
 }
