@@ -113,7 +113,7 @@ impl<M: RosMessageBound> Publisher<M> {
     ) -> Result<Self, RosError> {
         let local = match bus {
             Some(bus) => {
-                let topic = bus.topic::<M>(name, &format!("{:?}", M::message_type_name()))?;
+                let topic = bus.topic::<M>(name, &format!("{}/msg/{}", M::PACKAGE, M::NAME))?;
                 lock(&topic.publishers).push(dds.gid());
                 Some((topic, latched))
             }
@@ -165,7 +165,7 @@ impl<M: RosMessageBound> Subscription<M> {
     ) -> Result<Self, RosError> {
         let local = match bus {
             Some(bus) => {
-                let topic = bus.topic::<M>(name, &format!("{:?}", M::message_type_name()))?;
+                let topic = bus.topic::<M>(name, &format!("{}/msg/{}", M::PACKAGE, M::NAME))?;
                 let (tx, rx) = smol::channel::bounded(depth.max(1));
                 if latched && let Some(last) = lock(&topic.latched).clone() {
                     let _ = tx.force_send(last);
