@@ -11,6 +11,10 @@ JSON object (the assertions are the Rust test's):
   static_edges   [parent, child] of every transform on /tf_static
   moving_edges   [parent, child] of every transform on /tf from the robot state publisher
                  (frame_id not "odom")
+  joint_states, joint_states_in_tf_span
+                 how many /joint_states messages, and how many of them stamped within the
+                 first and last /tf message of the robot state publisher (each topic's
+                 recording starts when the recorder discovers it)
   compared       how many /joint_states messages had a /tf message of the same stamp, and
                  were compared
   max_position_error_m, max_rotation_error  over every link of every compared state: the
@@ -19,8 +23,10 @@ JSON object (the assertions are the Rust test's):
                  positions (fixed base: the root link at the origin); rotation error as the
                  largest entry of the difference of rotation matrices
   missing_links  links the composition could not reach (no edge to the root)
-  odom_tf        count of /tf transforms with frame_id "odom", their child frames, and the
-                 largest difference (m) between each and the /odom message of the same stamp
+  odom_tf        count of /tf transforms with frame_id "odom", their child frames, how many
+                 are stamped within the first and last /odom message (in_odom_span), how
+                 many have the /odom message of their stamp, and the largest difference (m)
+                 between each and that message
   world_tf       the other /tf transforms (the simulator's ground truth, world -> base_gt):
                  count, edges, and the base's first and last x, y by both
 """
@@ -126,6 +132,12 @@ def main(bag_dir, urdf):
             max_pos = max(max_pos, float(np.abs(ours[:3, 3] - ref.translation).max()))
             max_rot = max(max_rot, float(np.abs(ours[:3, :3] - ref.rotation).max()))
 
+    # The recorder subscribes each topic as it discovers it, so each stream begins at its
+    # own time: pairs are looked for only where both streams were recorded.
+    tf_span = (min(tf_by_stamp), max(tf_by_stamp)) if tf_by_stamp else (0, -1)
+    states_in_tf_span = sum(1 for s in states if tf_span[0] <= s <= tf_span[1])
+    odom_span = (min(odom), max(odom)) if odom else (0, -1)
+    odom_tf_in_span = sum(1 for t in odom_tf if odom_span[0] <= stamp_ns(t.header) <= odom_span[1])
     odom_diff = 0.0
     odom_matched = 0
     for t in odom_tf:
@@ -148,12 +160,14 @@ def main(bag_dir, urdf):
         "static_edges": sorted([p, c] for c, (p, _) in static.items()),
         "moving_edges": [list(e) for e in moving_edges],
         "joint_states": len(states),
+        "joint_states_in_tf_span": states_in_tf_span,
         "compared": compared,
         "max_position_error_m": max_pos,
         "max_rotation_error": max_rot,
         "missing_links": sorted(missing),
         "odom_tf": {"count": len(odom_tf), "children": sorted({t.child_frame_id for t in odom_tf}),
-                    "matched_odom": odom_matched, "max_difference": odom_diff},
+                    "in_odom_span": odom_tf_in_span, "matched_odom": odom_matched,
+                    "max_difference": odom_diff},
         "world_tf": {"count": len(world_tf),
                      "edges": sorted({(t.header.frame_id, t.child_frame_id) for t in world_tf}),
                      "start_xy": start_xy, "end_xy": end_xy},
