@@ -71,7 +71,10 @@ fn assert_tf_tree(v: &Value) {
     let in_span = v["joint_states_in_tf_span"].as_u64().unwrap();
     let compared = v["compared"].as_u64().unwrap();
     assert!(states > 500, "{states} joint states in the bag");
-    assert!(in_span > 500, "{in_span} joint states while /tf was recorded");
+    assert!(
+        in_span > 500,
+        "{in_span} joint states while /tf was recorded"
+    );
     assert!(
         compared * 100 >= in_span * 95,
         "only {compared} of {in_span} joint states have a /tf message of their stamp"
