@@ -28,6 +28,11 @@ pub const COMPOSABLE: [(&str, NodeRun); 4] = [
 /// A node's main function after its setup: runs until its host stops.
 pub type NodeRun = fn(NodeSetup, &Host) -> anyhow::Result<()>;
 
+/// The function that runs the composable node `name`; `None` for another name.
+pub fn node_run(name: &str) -> Option<NodeRun> {
+    COMPOSABLE.iter().find(|(n, _)| *n == name).map(|(_, r)| *r)
+}
+
 /// Splits `--node a ARGS... --node b ARGS...` into each node's name and arguments.
 pub fn split_nodes(args: &[String]) -> anyhow::Result<Vec<(String, Vec<String>)>> {
     let mut nodes: Vec<(String, Vec<String>)> = Vec::new();
@@ -35,7 +40,7 @@ pub fn split_nodes(args: &[String]) -> anyhow::Result<Vec<(String, Vec<String>)>
     while let Some(a) = it.next() {
         if a == "--node" {
             let name = it.next().context("--node needs a node name")?.to_owned();
-            if !COMPOSABLE.iter().any(|(n, _)| *n == name) {
+            if node_run(&name).is_none() {
                 anyhow::bail!(
                     "--node {name}: not a composable node (one of {})",
                     COMPOSABLE.map(|(n, _)| n).join(", ")
@@ -75,11 +80,7 @@ pub fn compose(args: &[String]) -> anyhow::Result<()> {
     let (done_tx, done_rx) = std::sync::mpsc::channel::<(String, anyhow::Result<()>)>();
     let mut threads = Vec::new();
     for (name, setup) in setups {
-        let run = COMPOSABLE
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map(|(_, r)| *r)
-            .context("checked above")?;
+        let run = node_run(&name).context("split_nodes takes only composable nodes")?;
         let (host, done) = (host.clone(), done_tx.clone());
         let thread = std::thread::Builder::new()
             .name(name.clone())

@@ -1,4 +1,5 @@
-//! `biped launch`: the fleet as separate processes, supervised.
+//! `biped launch`: the fleet as separate processes (or, `--composed`, the pipeline in one:
+//! `biped compose`), supervised.
 //!
 //! Starts `gait_planner`, `ik_solver`, `joint_bridge` and `robot_state_publisher` (the
 //! node binaries beside this one), and with `--backend sim` also `sim_bridge` (MuJoCo), each with `--ros-args` for the
@@ -56,18 +57,20 @@ pub struct LaunchOptions {
     pub serial: SerialArgs,
     /// Restarting nodes that die ([`Respawn`]); `None`: any node's exit stops the fleet.
     pub respawn: Option<Respawn>,
-    /// Run the nodes of [`COMPOSABLE_NODES`] in one process ([`COMPOSED`], `biped
-    /// compose`) instead of one process each.
+    /// Run the nodes `biped compose` can run ([`crate::compose::COMPOSABLE`]: the control
+    /// pipeline, and the simulator with `--backend sim`, as simulators host their robot's
+    /// controllers) in one process ([`COMPOSED`]) instead of one process each;
+    /// robot_state_publisher stays apart, as the ROS tool it stands in for.
     pub composed: bool,
 }
 
 /// The name of the process that runs the composed nodes (its log: `composed.log`).
 pub const COMPOSED: &str = "composed";
 
-/// The nodes `--composed` runs in one process, in start order: the control pipeline and
-/// the simulator (with `--backend sim`), as simulators host their robot's controllers.
-/// robot_state_publisher stays apart, as the ROS tool it stands in for.
-pub const COMPOSABLE_NODES: [&str; 4] = ["joint_bridge", "ik_solver", "gait_planner", "sim_bridge"];
+/// True for a node `biped compose` runs.
+fn composable(node: &str) -> bool {
+    crate::compose::node_run(node).is_some()
+}
 
 /// When `biped launch` restarts a node that died (killed, crashed): after `first_delay_s`,
 /// doubled for each death that comes within `quick_s` of the node's (re)start, up to
@@ -242,7 +245,7 @@ impl LaunchOptions {
     pub fn nodes(&self) -> Vec<&'static str> {
         let mut n = self.separate_nodes();
         if self.composed {
-            n.retain(|node| !COMPOSABLE_NODES.contains(node));
+            n.retain(|node| !composable(node));
             n.insert(0, COMPOSED);
         }
         n
@@ -251,7 +254,7 @@ impl LaunchOptions {
     /// The nodes the process of [`COMPOSED`] runs, in start order.
     pub fn composed_nodes(&self) -> Vec<&'static str> {
         let mut n = self.separate_nodes();
-        n.retain(|node| COMPOSABLE_NODES.contains(node));
+        n.retain(|node| composable(node));
         n
     }
 

@@ -21,7 +21,7 @@ use crate::error::RosError;
 
 /// The process's topics that nodes composed in it publish or subscribe, by resolved name.
 #[derive(Debug, Default)]
-pub struct Bus {
+pub(crate) struct Bus {
     topics: Mutex<BTreeMap<String, Arc<dyn Any + Send + Sync>>>,
 }
 
@@ -178,15 +178,18 @@ impl<M: RosMessageBound> Subscription<M> {
         Ok(Self { dds, local })
     }
 
+    /// True for the DDS copy of a message a publisher of this process delivered in-process.
+    fn delivered_already(&self, info: &MessageInfo) -> bool {
+        self.local
+            .as_ref()
+            .is_some_and(|(t, _)| t.is_local(&info.publisher_gid()))
+    }
+
     /// The next DDS sample that is not a copy of a message already delivered in-process.
     fn take_dds(&self) -> ros2_client::ReadResult<Option<Sample<M>>> {
         loop {
             match self.dds.take()? {
-                Some((_, info))
-                    if self
-                        .local
-                        .as_ref()
-                        .is_some_and(|(t, _)| t.is_local(&info.publisher_gid())) => {}
+                Some((_, info)) if self.delivered_already(&info) => {}
                 other => return Ok(other),
             }
         }
@@ -208,11 +211,7 @@ impl<M: RosMessageBound> Subscription<M> {
         let dds = async {
             loop {
                 let (m, info) = self.dds.async_take().await?;
-                let own = self
-                    .local
-                    .as_ref()
-                    .is_some_and(|(t, _)| t.is_local(&info.publisher_gid()));
-                if !own {
+                if !self.delivered_already(&info) {
                     return Ok((m, info));
                 }
             }

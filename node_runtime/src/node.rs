@@ -6,15 +6,13 @@
 use std::collections::BTreeMap;
 
 use biped_msgs::RosMessage;
-
-use crate::local::RosMessageBound;
 use ros2_client::{Context, Node, NodeName, NodeOptions, ParameterValue};
 use serde_norway::Value;
 
 use crate::args::{RosArgs, topic_name};
 use crate::context::context_from_env;
 use crate::error::RosError;
-use crate::local::{Bus, Publisher, Subscription};
+use crate::local::{Bus, Publisher, RosMessageBound, Subscription};
 use crate::log::Log;
 use crate::params::{ParameterCheck, node_parameters};
 use crate::qos;
@@ -160,10 +158,11 @@ pub fn node_main<E: std::fmt::Display>(
     name: &str,
     run: impl FnOnce(NodeSetup, &Host) -> Result<(), E>,
 ) -> std::process::ExitCode {
-    let result = NodeSetup::from_env(name)
-        .map_err(|e| e.to_string())
-        .and_then(|setup| Ok((setup, Host::process().map_err(|e| e.to_string())?)))
-        .and_then(|(setup, host)| run(setup, &host).map_err(|e| format!("{e:#}")));
+    let result = (|| {
+        let setup = NodeSetup::from_env(name).map_err(|e| e.to_string())?;
+        let host = Host::process().map_err(|e| e.to_string())?;
+        run(setup, &host).map_err(|e| format!("{e:#}"))
+    })();
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
@@ -247,19 +246,9 @@ impl Host {
         })
     }
 
-    /// True for nodes composed in one process.
-    pub fn is_composed(&self) -> bool {
-        self.bus.is_some()
-    }
-
     /// The flag that stops the node's loops (set: stop).
     pub fn stop_flag(&self) -> std::sync::Arc<std::sync::atomic::AtomicBool> {
         self.stop.clone()
-    }
-
-    /// True once the node is to stop.
-    pub fn stopping(&self) -> bool {
-        self.stop.load(std::sync::atomic::Ordering::SeqCst)
     }
 
     /// Asks every node of this host to stop.
