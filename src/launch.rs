@@ -435,6 +435,11 @@ impl Fleet {
         let err = file.try_clone()?;
         let args = if name == COMPOSED {
             let mut args = vec!["compose".to_string()];
+            if self.options.backend == "serial" {
+                // The joint bridge waits on the serial bus for its servos' answers: on its
+                // own thread, so that the planner and the IK do not wait with it.
+                args.extend(["--executor".to_string(), "per-node".to_string()]);
+            }
             for node in self.options.composed_nodes() {
                 args.extend(["--node".to_string(), node.to_string()]);
                 args.extend(self.node_args(node, restart)?);

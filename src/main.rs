@@ -89,11 +89,12 @@ enum Command {
         #[arg(long)]
         composed: bool,
     },
-    /// Run fleet nodes in one process, as ROS 2's component container: `--node <name>
-    /// [--ros-args ...]` for each (gait_planner, ik_solver, joint_bridge, sim_bridge), each
-    /// with the arguments its own binary takes. Messages between them are delivered
-    /// in-process; every topic stays on DDS for other peers. Until Ctrl-C or SIGTERM, or
-    /// until one node ends (which stops the others).
+    /// Run fleet nodes in one process, as ROS 2's component container: `[--executor
+    /// single|per-node] --node <name> [--ros-args ...]` for each (gait_planner, ik_solver,
+    /// joint_bridge, sim_bridge), each with the arguments its own binary takes. Messages
+    /// between them are delivered in-process; every topic stays on DDS for other peers. All
+    /// on one thread (`single`, the default) or each on its own (`per-node`). Until Ctrl-C
+    /// or SIGTERM, or until one node ends (which stops the others).
     Compose {
         /// `--node <name> [--ros-args ...]`, repeated.
         #[arg(

@@ -4,6 +4,7 @@
 //! subscriptions on resolved topic names, logging, and the executor.
 
 use std::collections::BTreeMap;
+use std::future::Future;
 
 use biped_msgs::RosMessage;
 use ros2_client::{Context, Node, NodeName, NodeOptions, ParameterValue};
@@ -152,16 +153,16 @@ impl NodeSetup {
 }
 
 /// The `main` of a node alone in its process: its setup from the command line, its host
-/// ([`Host::process`]), then `run`; an error is printed as `<name>: error: ...` and fails
-/// the process.
-pub fn node_main<E: std::fmt::Display>(
+/// ([`Host::process`]), then `run` on this thread until it ends; an error is printed as
+/// `<name>: error: ...` and fails the process.
+pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
     name: &str,
-    run: impl FnOnce(NodeSetup, &Host) -> Result<(), E>,
+    run: impl FnOnce(NodeSetup, Host) -> F,
 ) -> std::process::ExitCode {
     let result = (|| {
         let setup = NodeSetup::from_env(name).map_err(|e| e.to_string())?;
         let host = Host::process().map_err(|e| e.to_string())?;
-        run(setup, &host).map_err(|e| format!("{e:#}"))
+        smol::block_on(run(setup, host)).map_err(|e| format!("{e:#}"))
     })();
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -234,8 +235,8 @@ impl Host {
         })
     }
 
-    /// Nodes composed in one process, each on its own thread with a clone of this host:
-    /// one DDS participant (the environment's domain) for all of them, and a message one
+    /// Nodes composed in one process, each with a clone of this host (on one thread or
+    /// each on its own): one DDS participant (the environment's domain) for all of them, and a message one
     /// of them publishes reaches the others in-process (and outside peers on DDS).
     /// `stop` ends them all.
     pub fn composed(stop: std::sync::Arc<std::sync::atomic::AtomicBool>) -> Result<Self, RosError> {

@@ -492,7 +492,7 @@ fn publish(
 
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
 /// stops: alone in its process (the `gait_planner` binary) or composed with others in one.
-pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
+pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -556,7 +556,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
         }
     };
     let declared = declared(&params, &robot_file, &leg_map_file, odom_tf, stand_at_start)?;
-    let mut ros = RosNode::start(host, setup, &declared, Some(Box::new(check)))?;
+    let mut ros = RosNode::start(&host, setup, &declared, Some(Box::new(check)))?;
     let stop = host.stop_flag();
     let phase_pub = ros.publisher::<GaitPhase>("gait/phase")?;
     let targets_pub = ros.publisher::<AnkleTargets>("gait/ankle_targets")?;
@@ -592,7 +592,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     let mut commands = Commands {
         follower: VelocityFollower::new(),
     };
-    let result: anyhow::Result<()> = smol::block_on(executor.run(async {
+    let result: anyhow::Result<()> = executor.run(async {
         let mut last_phase = None;
         // Walk commands with a start time still ahead (bounded; a stop empties it).
         let mut pending: StartQueue<WalkCommand> = StartQueue::default();
@@ -835,7 +835,8 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
             last_sent = Some(sent);
         }
         Ok(())
-    }));
+    })
+    .await;
     ros.info("shutting down");
     result
 }

@@ -53,7 +53,7 @@ fn solve(
 
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
 /// stops: alone in its process (the `ik_solver` binary) or composed with others in one.
-pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
+pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -95,7 +95,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
             Ok(())
         }
     };
-    let mut ros = RosNode::start(host, setup, &declared, Some(Box::new(check)))?;
+    let mut ros = RosNode::start(&host, setup, &declared, Some(Box::new(check)))?;
     let stop = host.stop_flag();
     let sub = ros.subscription::<AnkleTargets>("gait/ankle_targets")?;
     let publisher = ros.publisher::<JointState>("joint_commands")?;
@@ -108,38 +108,41 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
 
     let mut q = vec![0.0; model.robot().dof_count()];
     let mut last_report: BTreeMap<String, Instant> = BTreeMap::new();
-    smol::block_on(executor.run(async {
-        while !stop.load(Ordering::SeqCst) {
-            let Some(msg) = ros
-                .take_within(&sub, "gait/ankle_targets", Duration::from_millis(100))
-                .await
-            else {
-                continue;
-            };
-            match solve(&model, &names, &dofs, &msg, &mut q) {
-                Ok((js, issues)) => {
-                    for issue in issues {
-                        // One report per kind of issue a second, not one per tick.
-                        let key: String = issue.split(':').next().unwrap_or_default().to_owned();
-                        let due = last_report
-                            .get(&key)
-                            .is_none_or(|t| t.elapsed() > Duration::from_secs(1));
-                        if due {
-                            ros.warn(&issue);
-                            last_report.insert(key, Instant::now());
+    executor
+        .run(async {
+            while !stop.load(Ordering::SeqCst) {
+                let Some(msg) = ros
+                    .take_within(&sub, "gait/ankle_targets", Duration::from_millis(100))
+                    .await
+                else {
+                    continue;
+                };
+                match solve(&model, &names, &dofs, &msg, &mut q) {
+                    Ok((js, issues)) => {
+                        for issue in issues {
+                            // One report per kind of issue a second, not one per tick.
+                            let key: String =
+                                issue.split(':').next().unwrap_or_default().to_owned();
+                            let due = last_report
+                                .get(&key)
+                                .is_none_or(|t| t.elapsed() > Duration::from_secs(1));
+                            if due {
+                                ros.warn(&issue);
+                                last_report.insert(key, Instant::now());
+                            }
+                        }
+                        if let Err(e) = publisher.publish(js) {
+                            ros.error_throttled(
+                                "publish joint_commands",
+                                &format!("publish joint_commands: {e}"),
+                            );
                         }
                     }
-                    if let Err(e) = publisher.publish(js) {
-                        ros.error_throttled(
-                            "publish joint_commands",
-                            &format!("publish joint_commands: {e}"),
-                        );
-                    }
+                    Err(why) => ros.warn(&why),
                 }
-                Err(why) => ros.warn(&why),
             }
-        }
-    }));
+        })
+        .await;
     ros.info("shutting down");
     Ok(())
 }

@@ -48,7 +48,7 @@ fn tf_message(frames: &[FrameTransform<'_>], stamp: Time, prefix: &str) -> TFMes
     }
 }
 
-fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
+async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -77,7 +77,7 @@ fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     .map(|(k, v)| (k.to_string(), v))
     .collect();
     let mut ros = RosNode::start(
-        host,
+        &host,
         setup,
         &declared,
         Some(node_runtime::read_at_startup()),
@@ -104,7 +104,7 @@ fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
         tree.model().dof_count()
     ));
 
-    smol::block_on(executor.run(async {
+    executor.run(async {
         while !stop.load(Ordering::SeqCst) {
             let Some(state) = ros
                 .take_within(&sub, "joint_states", Duration::from_millis(100))
@@ -134,7 +134,8 @@ fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
                 Err(e) => ros.error_throttled("joint_states", &format!("joint_states: {e}")),
             }
         }
-    }));
+    })
+    .await;
     ros.info("shutting down");
     Ok(())
 }

@@ -95,7 +95,7 @@ const PARAMS: [&str; 16] = [
 
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
 /// stops: alone in its process (the `joint_bridge` binary) or composed with others in one.
-pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
+pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -268,7 +268,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     ]);
     declared.extend(serial.declared());
     let mut ros = RosNode::start(
-        host,
+        &host,
         setup,
         &declared,
         Some(node_runtime::read_at_startup()),
@@ -294,7 +294,6 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
                 let (link, handle) = SimLink::new(
                     ros.publisher::<JointState>("sim/joint_commands")?,
                     ros.subscription::<JointState>("joint_states")?,
-                    Duration::from_secs_f64(sim_wait_s),
                     simulated,
                 );
                 (Box::new(link), Some(handle), None)
@@ -355,13 +354,26 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
         // Unconfigured, torque off: the lifecycle manager configures and activates.
         bridge.hold(Operator::Inactive);
     } else {
-        match bridge.start() {
+        let mut started = bridge.start();
+        if link.is_some() {
+            // The simulator may start after this node (or on its thread, composed): wait for
+            // its first joint_states without holding the thread.
+            let deadline = Instant::now() + Duration::from_secs_f64(sim_wait_s);
+            while started.is_err() && Instant::now() < deadline && !stop.load(Ordering::SeqCst) {
+                smol::Timer::after(Duration::from_millis(10)).await;
+                started = bridge.start();
+            }
+        }
+        match started {
             Ok(()) => {}
             // A serial board retries with backoff (port absent, board unpowered...).
             Err(e) if reconnect.is_some() => ros.error(&format!(
                 "backend {what}: {e}; retrying every {}..{} s",
                 serial.retry_first_s, serial.retry_max_s
             )),
+            Err(e) if link.is_some() => {
+                anyhow::bail!("backend {backend_name}: {e}, for {sim_wait_s} s (sim_wait_s)")
+            }
             Err(e) => anyhow::bail!("backend {backend_name}: {e}"),
         }
     }
@@ -501,109 +513,110 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
         Some(nalgebra::Vector3::new(w.x, w.y, w.z))
     };
     let t0 = Instant::now();
-    smol::block_on(executor.run(async {
-        if !simulated {
-            while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
-                let _ = ticks.next().await;
-                let t = t0.elapsed().as_secs_f64();
-                while let Some(cmd) = take_command(&sub, &ros) {
-                    report(bridge.command(t, &cmd.name, &cmd.position));
-                }
-                // The newest body rate, timed on arrival (the IMU's clock is not ours).
-                while let Some(Ok(Some((m, _)))) = imu.as_ref().map(|s| s.take()) {
-                    if let Some(w) = body_rate(&m) {
-                        bridge.set_body_rate(t, w);
+    executor
+        .run(async {
+            if !simulated {
+                while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
+                    let _ = ticks.next().await;
+                    let t = t0.elapsed().as_secs_f64();
+                    while let Some(cmd) = take_command(&sub, &ros) {
+                        report(bridge.command(t, &cmd.name, &cmd.position));
                     }
+                    // The newest body rate, timed on arrival (the IMU's clock is not ours).
+                    while let Some(Ok(Some((m, _)))) = imu.as_ref().map(|s| s.take()) {
+                        if let Some(w) = body_rate(&m) {
+                            bridge.set_body_rate(t, w);
+                        }
+                    }
+                    do_tick(&mut bridge, t);
                 }
-                do_tick(&mut bridge, t);
+                return;
             }
-            return;
-        }
-        // Lockstep on /clock: tick t runs when the command stamped t (or later) has come, or
-        // after lockstep_wait_s of wall time without it (then the watchdog decides).
-        enum Wake {
-            Tick(Option<Tick>),
-            Command(Option<JointState>),
-            Imu(Imu),
-        }
-        let mut pending: Option<(f64, Instant)> = None;
-        let mut clock_s = 0.0;
-        let mut newest_command_s = f64::NEG_INFINITY;
-        // With gyro damping, tick t also waits for the body rate stamped t (published by the
-        // simulator with the state of t, before /clock), so the run stays deterministic, as
-        // long as the IMU publishes: one silent for more than GYRO_MAX_AGE_S (or never heard)
-        // does not hold the clock.
-        let mut newest_imu_s = f64::NEG_INFINITY;
-        let wait = Duration::from_secs_f64(lockstep_wait_s);
-        while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
-            let wake = async {
-                Wake::Command(match sub.async_take().await {
-                    Ok((m, _)) => Some(m),
-                    Err(e) => {
-                        ros.warn(&format!(
-                            "joint_commands: unreadable message dropped: {e:?}"
-                        ));
-                        None
+            // Lockstep on /clock: tick t runs when the command stamped t (or later) has come, or
+            // after lockstep_wait_s of wall time without it (then the watchdog decides).
+            enum Wake {
+                Tick(Option<Tick>),
+                Command(Option<JointState>),
+                Imu(Imu),
+            }
+            let mut pending: Option<(f64, Instant)> = None;
+            let mut clock_s = 0.0;
+            let mut newest_command_s = f64::NEG_INFINITY;
+            // With gyro damping, tick t also waits for the body rate stamped t (published by the
+            // simulator with the state of t, before /clock), so the run stays deterministic, as
+            // long as the IMU publishes: one silent for more than GYRO_MAX_AGE_S (or never heard)
+            // does not hold the clock.
+            let mut newest_imu_s = f64::NEG_INFINITY;
+            let wait = Duration::from_secs_f64(lockstep_wait_s);
+            while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
+                let wake = async {
+                    Wake::Command(match sub.async_take().await {
+                        Ok((m, _)) => Some(m),
+                        Err(e) => {
+                            ros.warn(&format!(
+                                "joint_commands: unreadable message dropped: {e:?}"
+                            ));
+                            None
+                        }
+                    })
+                }
+                .or(async {
+                    match &imu {
+                        Some(sub) => loop {
+                            match sub.async_take().await {
+                                Ok((m, _)) => break Wake::Imu(m),
+                                Err(e) => ros
+                                    .warn(&format!("imu/data: unreadable message dropped: {e:?}")),
+                            }
+                        },
+                        None => std::future::pending().await,
                     }
                 })
-            }
-            .or(async {
-                match &imu {
-                    Some(sub) => loop {
-                        match sub.async_take().await {
-                            Ok((m, _)) => break Wake::Imu(m),
-                            Err(e) => {
-                                ros.warn(&format!("imu/data: unreadable message dropped: {e:?}"))
+                .or(async { Wake::Tick(ticks.next().await) })
+                .await;
+                match wake {
+                    Wake::Command(Some(cmd)) => {
+                        newest_command_s = newest_command_s.max(cmd.header.stamp.as_secs_f64());
+                        report(bridge.command(clock_s, &cmd.name, &cmd.position));
+                    }
+                    Wake::Imu(m) => {
+                        let t = m.header.stamp.as_secs_f64();
+                        // Heard, even in a frame it cannot use (said once): not waited for.
+                        newest_imu_s = newest_imu_s.max(t);
+                        if let Some(w) = body_rate(&m) {
+                            bridge.set_body_rate(t, w);
+                        }
+                    }
+                    Wake::Command(None) | Wake::Tick(None) => {}
+                    Wake::Tick(Some(tick)) => {
+                        let t = tick.sim_time.map_or(0.0, |s| s.as_secs_f64());
+                        if tick.repeat {
+                            if pending.is_none()
+                                && let Some(link) = &link
+                                && let Err(e) = link.resend()
+                            {
+                                ros.error(&format!("sim link: {e}"));
                             }
+                            continue;
                         }
-                    },
-                    None => std::future::pending().await,
-                }
-            })
-            .or(async { Wake::Tick(ticks.next().await) })
-            .await;
-            match wake {
-                Wake::Command(Some(cmd)) => {
-                    newest_command_s = newest_command_s.max(cmd.header.stamp.as_secs_f64());
-                    report(bridge.command(clock_s, &cmd.name, &cmd.position));
-                }
-                Wake::Imu(m) => {
-                    let t = m.header.stamp.as_secs_f64();
-                    // Heard, even in a frame it cannot use (said once): not waited for.
-                    newest_imu_s = newest_imu_s.max(t);
-                    if let Some(w) = body_rate(&m) {
-                        bridge.set_body_rate(t, w);
-                    }
-                }
-                Wake::Command(None) | Wake::Tick(None) => {}
-                Wake::Tick(Some(tick)) => {
-                    let t = tick.sim_time.map_or(0.0, |s| s.as_secs_f64());
-                    if tick.repeat {
-                        if pending.is_none()
-                            && let Some(link) = &link
-                            && let Err(e) = link.resend()
-                        {
-                            ros.error(&format!("sim link: {e}"));
+                        // A tick still waiting for its command when the next comes: run it now.
+                        if let Some((p, _)) = pending.take() {
+                            do_tick(&mut bridge, p);
                         }
-                        continue;
+                        clock_s = t;
+                        pending = Some((t, Instant::now()));
                     }
-                    // A tick still waiting for its command when the next comes: run it now.
-                    if let Some((p, _)) = pending.take() {
-                        do_tick(&mut bridge, p);
-                    }
-                    clock_s = t;
-                    pending = Some((t, Instant::now()));
+                }
+                if let Some((p, since)) = pending
+                    && ((newest_command_s >= p - 1e-9 && !imu_due(imu.is_some(), newest_imu_s, p))
+                        || since.elapsed() >= wait)
+                {
+                    pending = None;
+                    do_tick(&mut bridge, p);
                 }
             }
-            if let Some((p, since)) = pending
-                && ((newest_command_s >= p - 1e-9 && !imu_due(imu.is_some(), newest_imu_s, p))
-                    || since.elapsed() >= wait)
-            {
-                pending = None;
-                do_tick(&mut bridge, p);
-            }
-        }
-    }));
+        })
+        .await;
     if let Err(e) = bridge.stop() {
         ros.error(&format!("torque off failed: {e}"));
     }

@@ -2,7 +2,7 @@
 //!
 //! | call | what goes over the wire |
 //! |---|---|
-//! | `configure` | waits (up to `wait`) for the simulator's `joint_states`; returns those positions |
+//! | `configure` | the simulator's latest `joint_states` (an error until the first arrives: the node retries up to `sim_wait_s` without holding its thread); returns those positions |
 //! | `activate` | nothing: the simulated servos hold their pose from the start |
 //! | `write(t, q)` | publishes `sim/joint_commands` (sensor_msgs/msg/JointState, every driven joint, stamped t on simulated time, with the wall clock otherwise) |
 //! | `read(t)` | the latest `joint_states` the simulator published (`measured: true`) |
@@ -12,7 +12,7 @@
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{SystemTime, UNIX_EPOCH};
 
 use crate::{Backend, BackendError, JointSpec, Reading};
 use biped_msgs::msg::{Header, JointState, Time};
@@ -107,7 +107,6 @@ impl SimLinkHandle {
 pub struct SimLink {
     handle: SimLinkHandle,
     states: Subscription<JointState>,
-    wait: Duration,
     names: Vec<String>,
     latest: Option<JointState>,
 }
@@ -126,7 +125,6 @@ impl SimLink {
     pub fn new(
         commands: Publisher<JointState>,
         states: Subscription<JointState>,
-        wait: Duration,
         sim_time: bool,
     ) -> (Self, SimLinkHandle) {
         let handle = SimLinkHandle {
@@ -140,7 +138,6 @@ impl SimLink {
             Self {
                 handle: handle.clone(),
                 states,
-                wait,
                 names: Vec::new(),
                 latest: None,
             },
@@ -184,22 +181,13 @@ impl Backend for SimLink {
 
     fn configure(&mut self, joints: &[JointSpec]) -> Result<Option<Vec<f64>>, BackendError> {
         self.names = joints.iter().map(|j| j.name.clone()).collect();
-        let start = Instant::now();
-        loop {
-            self.drain();
-            if let Some(m) = &self.latest {
-                return self.positions(m).map(Some);
-            }
-            if start.elapsed() > self.wait {
-                return Err(BackendError::Open {
-                    backend: NAME.into(),
-                    why: format!(
-                        "no joint_states from a sim_bridge node within {:.1} s (is it running, in the same ROS_DOMAIN_ID and namespace?)",
-                        self.wait.as_secs_f64()
-                    ),
-                });
-            }
-            std::thread::sleep(Duration::from_millis(10));
+        self.drain();
+        match &self.latest {
+            Some(m) => self.positions(m).map(Some),
+            None => Err(BackendError::Open {
+                backend: NAME.into(),
+                why: "no joint_states from a sim_bridge node (is it running, in the same ROS_DOMAIN_ID and namespace?)".into(),
+            }),
         }
     }
 

@@ -264,7 +264,7 @@ impl Outputs {
 
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
 /// stops: alone in its process (the `sim_bridge` binary) or composed with others in one.
-pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
+pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     if !setup.own_args.is_empty() {
         anyhow::bail!(
             "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
@@ -379,7 +379,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
         declared.insert(k.into(), ParameterValue::Double(v));
     }
     let mut ros = RosNode::start(
-        host,
+        &host,
         setup,
         &declared,
         Some(node_runtime::read_at_startup()),
@@ -442,7 +442,7 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
     // The wall time of simulated time 0 at the pace; moved later after a stall.
     let mut wall0 = Instant::now();
     out.publish(&ros, &sim, Time::from_nanos(t_ns));
-    let result: anyhow::Result<()> = smol::block_on(executor.run(async {
+    let result: anyhow::Result<()> = executor.run(async {
         while !stop.load(Ordering::SeqCst) {
             while let Ok(Some((id, req))) = pause_srv.receive_request() {
                 let said = match (paused, req.data) {
@@ -562,7 +562,8 @@ pub fn run(setup: NodeSetup, host: &Host) -> anyhow::Result<()> {
                 .await;
         }
         Ok(())
-    }));
+    })
+    .await;
     ros.info("shutting down");
     result
 }
