@@ -429,7 +429,32 @@ impl RosNode {
         depth: usize,
         latched: bool,
     ) -> Result<Subscription<M>, RosError> {
-        let topic = self.topic::<M>(name)?;
+        let mut topic = self.topic::<M>(name)?;
+        if self.bus.is_some() {
+            // Composed, the bus delivers what the other nodes of the process publish: the
+            // DDS reader matches only writers of other participants (RustDDS's QoS
+            // IgnoreLocal, patches/README.md), as rclcpp's intra-process subscriptions
+            // ignore local publications. ros2-client's QoS profile cannot say it; the
+            // topic's QoS can, and the reader's QoS starts from the topic's.
+            use ros2_client::dds::rustdds::dds::qos::HasQoSPolicy;
+            use ros2_client::dds::rustdds::{QosPolicyBuilder, TopicDescription, policy};
+            let ignore_local = QosPolicyBuilder::new()
+                .ignore_local(policy::IgnoreLocal::Participant)
+                .build();
+            topic = self
+                ._context
+                .domain_participant()
+                .create_topic(
+                    topic.name(),
+                    topic.get_type().name().to_owned(),
+                    &topic.qos().modify_by(&ignore_local),
+                    topic.kind(),
+                )
+                .map_err(|e| RosError::Dds {
+                    what: format!("topic {name}"),
+                    message: format!("{e:?}"),
+                })?;
+        }
         let dds = self
             .node
             .create_subscription::<M>(&topic, qos)

@@ -1937,6 +1937,110 @@ mod tests {
     );
   }
 
+  // A reader with IgnoreLocal::Participant takes no sample from a writer of its own
+  // participant, yet takes those of another participant's writer; an ordinary
+  // reader beside it takes both (the control: the local writer does reach readers).
+  #[test]
+  fn a_reader_ignoring_its_own_participant_gets_only_other_participants_samples() {
+    use crate::{dds::qos::policy::IgnoreLocal, serialization::CDRDeserializerAdapter, QosPolicyBuilder};
+    let domain = test_domain_id(19);
+    let local = DomainParticipant::new(domain).expect("participant");
+    let remote = DomainParticipant::new(domain).expect("participant");
+    let qos = QosPolicies::qos_none();
+    let topic_of = |dp: &DomainParticipant| {
+      dp.create_topic(
+        "ignore_local".to_string(),
+        "RandomData".to_string(),
+        &qos,
+        TopicKind::WithKey,
+      )
+      .unwrap()
+    };
+    let writer_of = |dp: &DomainParticipant| {
+      dp.create_publisher(&qos)
+        .unwrap()
+        .create_datawriter::<RandomData, CDRSerializerAdapter<RandomData, LittleEndian>>(
+          &topic_of(dp),
+          None,
+        )
+        .unwrap()
+    };
+    let local_writer = writer_of(&local);
+    let remote_writer = writer_of(&remote);
+    let subscriber = local.create_subscriber(&qos).unwrap();
+    let local_topic = topic_of(&local);
+    let mut ordinary = subscriber
+      .create_datareader::<RandomData, CDRDeserializerAdapter<RandomData>>(&local_topic, None)
+      .unwrap();
+    let mut ignoring = subscriber
+      .create_datareader::<RandomData, CDRDeserializerAdapter<RandomData>>(
+        &local_topic,
+        Some(
+          QosPolicyBuilder::new()
+            .ignore_local(IgnoreLocal::Participant)
+            .build(),
+        ),
+      )
+      .unwrap();
+    // The writers' participants, by GUID prefix, of what a reader has taken so far
+    // (true: the local one). The writers write different keys.
+    let taken = |reader: &mut crate::with_key::DataReader<
+      RandomData,
+      CDRDeserializerAdapter<RandomData>,
+    >,
+                     into: &mut BTreeSet<bool>| {
+      while let Ok(Some(sample)) = reader.take_next_sample() {
+        into.insert(sample.sample_info().writer_guid().prefix == local.guid().prefix);
+      }
+    };
+    let (mut by_ordinary, mut by_ignoring) = (BTreeSet::new(), BTreeSet::new());
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    let mut a = 0;
+    // Until the ordinary reader has samples of both writers and the ignoring one of
+    // the remote writer, and then a few more writes.
+    let mut more = 5;
+    while more > 0 && std::time::Instant::now() < deadline {
+      a += 1;
+      local_writer
+        .write(
+          RandomData {
+            a: 2 * a,
+            b: "local".into(),
+          },
+          None,
+        )
+        .unwrap();
+      remote_writer
+        .write(
+          RandomData {
+            a: 2 * a + 1,
+            b: "remote".into(),
+          },
+          None,
+        )
+        .unwrap();
+      std::thread::sleep(std::time::Duration::from_millis(50));
+      taken(&mut ordinary, &mut by_ordinary);
+      taken(&mut ignoring, &mut by_ignoring);
+      if by_ordinary.len() == 2 && by_ignoring.contains(&false) {
+        more -= 1;
+      }
+    }
+    assert_eq!(
+      by_ordinary,
+      BTreeSet::from([false, true]),
+      "control: the ordinary reader did not get samples of both writers in 10 s"
+    );
+    assert!(
+      by_ignoring.contains(&false),
+      "the ignoring reader got no sample of the other participant's writer"
+    );
+    assert!(
+      !by_ignoring.contains(&true),
+      "the ignoring reader got a sample of its own participant's writer"
+    );
+  }
+
   #[test]
   fn dp_writer_heartbeat_test() {
     let domain_participant =

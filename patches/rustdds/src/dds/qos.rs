@@ -80,6 +80,7 @@ pub struct QosPolicyBuilder {
   history: Option<policy::History>,
   resource_limits: Option<policy::ResourceLimits>,
   lifespan: Option<policy::Lifespan>,
+  ignore_local: Option<policy::IgnoreLocal>,
   // #[cfg(feature = "security")]
   // property: Option<policy::Property>,
   //
@@ -105,6 +106,7 @@ impl QosPolicyBuilder {
       history: None,
       resource_limits: None,
       lifespan: None,
+      ignore_local: None,
     }
   }
 
@@ -192,6 +194,13 @@ impl QosPolicyBuilder {
     self
   }
 
+  /// See [`policy::IgnoreLocal`].
+  #[must_use]
+  pub const fn ignore_local(mut self, ignore_local: policy::IgnoreLocal) -> Self {
+    self.ignore_local = Some(ignore_local);
+    self
+  }
+
   pub const fn build(self) -> QosPolicies {
     QosPolicies {
       durability: self.durability,
@@ -206,6 +215,7 @@ impl QosPolicyBuilder {
       history: self.history,
       resource_limits: self.resource_limits,
       lifespan: self.lifespan,
+      ignore_local: self.ignore_local,
       // DATA_REPRESENTATION is not part of the (const) builder: it holds a `Vec`
       // (drop glue) which is incompatible with `const fn`, and the built-in QoS
       // policies never need it. Set it via `QosPolicies::with_data_representation`.
@@ -235,6 +245,8 @@ pub struct QosPolicies {
   pub(crate) resource_limits: Option<policy::ResourceLimits>,
   pub(crate) lifespan: Option<policy::Lifespan>,
   pub(crate) data_representation: Option<policy::DataRepresentation>,
+  // Local to the endpoint: not in discovery data.
+  pub(crate) ignore_local: Option<policy::IgnoreLocal>,
   #[cfg(feature = "security")]
   pub(crate) property: Option<policy::Property>,
 }
@@ -318,6 +330,16 @@ impl QosPolicies {
     self.data_representation.clone()
   }
 
+  pub const fn ignore_local(&self) -> Option<policy::IgnoreLocal> {
+    self.ignore_local
+  }
+
+  /// True if an endpoint with these policies does not match endpoints of its own
+  /// DomainParticipant ([`policy::IgnoreLocal::Participant`]).
+  pub fn ignores_own_participant(&self) -> bool {
+    self.ignore_local == Some(policy::IgnoreLocal::Participant)
+  }
+
   /// Set the DATA_REPRESENTATION QoS policy (DDS-XTypes v1.3 Section 7.6.3.1).
   ///
   /// For a DataWriter the first list element is the representation it uses; for
@@ -362,6 +384,7 @@ impl QosPolicies {
         .data_representation
         .clone()
         .or(self.data_representation.clone()),
+      ignore_local: other.ignore_local.or(self.ignore_local),
       #[cfg(feature = "security")]
       property: other.property.clone().or(self.property.clone()),
     }
@@ -566,6 +589,8 @@ impl QosPolicies {
       resource_limits,
       lifespan,
       data_representation,
+      // Local to the endpoint, never sent.
+      ignore_local: _,
       #[cfg(feature = "security")]
         property: _, // TODO: properties to parameter list?
     } = self;
@@ -738,6 +763,7 @@ impl QosPolicies {
       resource_limits,
       lifespan,
       data_representation,
+      ignore_local: None,
       #[cfg(feature = "security")]
       property,
     })
@@ -1076,6 +1102,22 @@ pub mod policy {
   pub enum DestinationOrder {
     ByReceptionTimestamp,
     BySourceTimeStamp,
+  }
+
+  /// Which endpoints of its own kind an endpoint does not match, as Cyclone DDS's
+  /// IGNORELOCAL QoS (`dds_qset_ignorelocal`): with `Participant`, a DataReader takes
+  /// no samples from DataWriters of its own DomainParticipant, and such writers send it
+  /// none (the match is not made, either way; a DataWriter with `Participant` likewise
+  /// matches no reader of its participant). For applications that deliver between
+  /// their own endpoints by other means, as ROS 2's intra-process communication does
+  /// (`ignore_local_publications`). Local to the endpoint: not sent in discovery
+  /// data, and not part of QoS compatibility.
+  #[derive(Copy, Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+  pub enum IgnoreLocal {
+    /// Match every endpoint (the default).
+    Nothing,
+    /// Match no endpoint of the own DomainParticipant.
+    Participant,
   }
 
   /// DDS 2.2.3.18 HISTORY

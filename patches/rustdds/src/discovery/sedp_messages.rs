@@ -287,6 +287,7 @@ impl SubscriptionBuiltinTopicData {
       resource_limits: None, // nor Resource Limits, see Figure 8.30 in RTPS spec 2.5
       lifespan: self.lifespan,
       data_representation: self.data_representation.clone(),
+      ignore_local: None, // local to an endpoint, never discovered
 
       #[cfg(feature = "security")]
       property: None, // TODO: no property QoS?
@@ -736,6 +737,7 @@ impl PublicationBuiltinTopicData {
       resource_limits: None, // nor Resource Limits, see Figure 8.30 in RTPS spec 2.5
       lifespan: self.lifespan,
       data_representation: self.data_representation.clone(),
+      ignore_local: None, // local to an endpoint, never discovered
       #[cfg(feature = "security")]
       property: None, // TODO: no property Qos?
     }
@@ -1097,6 +1099,7 @@ impl HasQoSPolicy for TopicBuiltinTopicData {
       resource_limits: self.resource_limits,
       lifespan: self.lifespan,
       data_representation: None, // Topic-level DATA_REPRESENTATION not tracked
+      ignore_local: None,
       #[cfg(feature = "security")]
       property: None, // TODO: no property Qos?
     }

@@ -13,7 +13,7 @@ use mio1::{Events, Interest, Poll, Token};
 
 use crate::{
   dds::{
-    qos::policy,
+    qos::{policy, HasQoSPolicy},
     result::{CreateError, CreateResult},
     statusevents::{DomainParticipantStatusEvent, StatusChannelSender},
   },
@@ -910,7 +910,20 @@ impl DPEventLoop {
       })
       .unwrap_or_else(|e| error!("Cannot report participant status: {e:?}"));
 
+    // A reader of this participant that ignores its own participant's writers
+    // (QoS IgnoreLocal::Participant) is matched to none of them.
+    let reader_guid = remote_reader.reader_proxy.remote_reader_guid;
+    let reader_ignores_local = self
+      .message_receiver
+      .available_readers
+      .get(&reader_guid.entity_id)
+      .is_some_and(|r| r.guid() == reader_guid && r.qos().ignores_own_participant());
     for writer in self.writers.values_mut() {
+      if reader_guid.prefix == writer.guid().prefix
+        && (reader_ignores_local || writer.qos().ignores_own_participant())
+      {
+        continue;
+      }
       if remote_reader.subscription_topic_data.topic_name() == writer.topic_name() {
         #[cfg(not(feature = "security"))]
         let match_to_reader = true;
@@ -999,8 +1012,20 @@ impl DPEventLoop {
       })
       .unwrap_or_else(|e| error!("Cannot report participant status: {e:?}"));
 
+    // A writer of this participant that ignores its own participant's readers
+    // (QoS IgnoreLocal::Participant) is matched to none of them.
+    let writer_guid = remote_writer.writer_proxy.remote_writer_guid;
+    let writer_ignores_local = self
+      .writers
+      .get(&writer_guid.entity_id)
+      .is_some_and(|w| w.guid() == writer_guid && w.qos().ignores_own_participant());
     // update writer proxies in local readers
     for reader in self.message_receiver.available_readers.values_mut() {
+      if writer_guid.prefix == reader.guid().prefix
+        && (writer_ignores_local || reader.qos().ignores_own_participant())
+      {
+        continue;
+      }
       if &remote_writer.publication_topic_data.topic_name == reader.topic_name() {
         #[cfg(not(feature = "security"))]
         let match_to_writer = true;
@@ -1086,6 +1111,13 @@ impl DPEventLoop {
     // id, so there is nothing to register under the reader token.
     new_reader.set_requested_deadline_check_timer();
     trace!("Add reader: {new_reader:?}");
+    if new_reader.qos().ignores_own_participant() {
+      // Discovery may have matched it to this participant's writers before it
+      // got here, when its QoS was not known yet.
+      for writer in self.writers.values_mut() {
+        writer.reader_lost(new_reader.guid());
+      }
+    }
     self.message_receiver.add_reader(new_reader);
   }
 
@@ -1145,6 +1177,13 @@ impl DPEventLoop {
         SPDP_LOCALHOST_PEER_COUNT,
       ));
       new_writer.set_extra_unicast_destinations(destinations);
+    }
+
+    if new_writer.qos().ignores_own_participant() {
+      // As for a reader in `add_local_reader`.
+      for reader in self.message_receiver.available_readers.values_mut() {
+        reader.remove_writer_proxy(new_writer.guid());
+      }
     }
 
     // The doorbell is a shared ready-queue plus the poll waker, not a

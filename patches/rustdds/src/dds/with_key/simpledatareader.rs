@@ -357,12 +357,37 @@ where
     let mut changes =
       Self::try_take_undecoded(is_reliable, &topic_cache, latest_instant, last_read_sn);
 
+    // QoS IgnoreLocal::Participant: the readers of a topic share its cache, so a
+    // sample of this participant's writers may be there for another reader; this
+    // one passes over it (and remembers so, below, not to look at it again).
+    let ignore_prefix = self
+      .qos_policy
+      .ignores_own_participant()
+      .then_some(self.my_guid.prefix);
+    let mut passed_over: Option<(Timestamp, GUID, SequenceNumber)> = None;
+
     // loop in case we get a sample that should be ignored, so we try next.
     loop {
       let (timestamp, cc) = match changes.next() {
-        None => return Ok(None), // no more data available right now
+        None => {
+          drop(changes);
+          if let Some((timestamp, writer_guid, sequence_number)) = passed_over {
+            read_state_ref.latest_instant = max(latest_instant, timestamp);
+            read_state_ref
+              .last_read_sn
+              .insert(writer_guid, sequence_number);
+          }
+          return Ok(None); // no more data available right now
+        }
         Some((ts, cc)) => (ts, cc),
       };
+
+      if Some(cc.writer_guid.prefix) == ignore_prefix {
+        // The last one passed over: enough while only this participant's writer
+        // writes, the usual case (a sample taken after it moves the pointers on).
+        passed_over = Some((timestamp, cc.writer_guid, cc.sequence_number));
+        continue;
+      }
 
       let result = self.deserialize_with(timestamp, cc, hash_to_key_map, decoder.clone());
 
