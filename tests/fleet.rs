@@ -551,6 +551,45 @@ fn biped_launch_starts_the_fleet_and_leaves_no_process_behind() {
     );
 }
 
+/// `biped compose` on one thread and with a thread per node: a node that fails (the joint
+/// bridge, given a backend that does not exist) stops the others, which shut down, and the
+/// process fails naming the node and the bad value.
+#[test]
+fn a_composed_node_that_fails_stops_the_others_on_either_executor() {
+    for (executor, says, domain) in [
+        ("single", "ik_solver, joint_bridge on one thread", 194),
+        (
+            "per-node",
+            "ik_solver, joint_bridge each on its own thread",
+            195,
+        ),
+    ] {
+        // `timeout`: a node left running would keep the process alive (exit status 124).
+        let out = common::in_netns("exec timeout 60 \"$@\"", domain)
+            .arg(bin_dir().join("biped"))
+            .args(["compose", "--executor", executor])
+            .args(["--node", "ik_solver", "--node", "joint_bridge"])
+            .args(["--ros-args", "-p", "backend:=warp_drive"])
+            .output()
+            .expect("unshare runs (root needed for a private network namespace)");
+        let all = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert_eq!(out.status.code(), Some(1), "{executor}: {all}");
+        assert!(all.contains(says), "{executor}: {all}");
+        assert!(
+            all.contains("joint_bridge failed: parameter `backend` = `warp_drive`"),
+            "{executor}: {all}"
+        );
+        assert!(
+            all.contains("[/ik_solver]: shutting down"),
+            "{executor}: the other node did not shut down: {all}"
+        );
+    }
+}
+
 /// `biped launch --backend sim`: a plain rclpy node (as RViz or Foxglove would be) watches
 /// the simulated robot in real time and walks it with a `ros2 topic pub`-style command.
 #[test]
