@@ -236,9 +236,9 @@ impl Host {
     }
 
     /// Nodes composed in one process, each with a clone of this host (on one thread or
-    /// each on its own): one DDS participant (the environment's domain) for all of them, and a message one
-    /// of them publishes reaches the others in-process (and outside peers on DDS).
-    /// `stop` ends them all.
+    /// each on its own): one DDS participant (the environment's domain) for all of them,
+    /// and a message one of them publishes reaches the others in-process (and outside
+    /// peers on DDS). `stop` ends them all.
     pub fn composed(stop: std::sync::Arc<std::sync::atomic::AtomicBool>) -> Result<Self, RosError> {
         Ok(Self {
             context: context_from_env()?,
@@ -267,8 +267,8 @@ pub struct RosNode {
     pub setup: NodeSetup,
     /// Console + `/rosout`.
     pub log: Log,
-    // The node keeps its DDS participant alive through this.
-    _context: Context,
+    // The node's DDS participant (the node keeps it alive through this).
+    context: Context,
     /// The process's in-process topics, when composed.
     bus: Option<std::sync::Arc<Bus>>,
     /// When each throttled message was last logged, and how many were held back since.
@@ -313,7 +313,7 @@ impl RosNode {
             node,
             setup,
             log,
-            _context: context,
+            context,
             bus: host.bus.clone(),
             throttled: std::sync::Mutex::new(BTreeMap::new()),
         })
@@ -442,7 +442,7 @@ impl RosNode {
                 .ignore_local(policy::IgnoreLocal::Participant)
                 .build();
             topic = self
-                ._context
+                .context
                 .domain_participant()
                 .create_topic(
                     topic.name(),

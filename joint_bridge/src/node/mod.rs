@@ -363,6 +363,11 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 smol::Timer::after(Duration::from_millis(10)).await;
                 started = bridge.start();
             }
+            if started.is_err() && stop.load(Ordering::SeqCst) {
+                // Stopped while waiting: nothing was started, nothing to turn off.
+                ros.info("shutting down before the simulator answered");
+                return Ok(());
+            }
         }
         match started {
             Ok(()) => {}
@@ -372,7 +377,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 serial.retry_first_s, serial.retry_max_s
             )),
             Err(e) if link.is_some() => {
-                anyhow::bail!("backend {backend_name}: {e}, for {sim_wait_s} s (sim_wait_s)")
+                anyhow::bail!("backend {backend_name}: {e}, in {sim_wait_s} s (sim_wait_s)")
             }
             Err(e) => anyhow::bail!("backend {backend_name}: {e}"),
         }
