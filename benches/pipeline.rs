@@ -46,7 +46,7 @@ use common::{
     bin_dir, check_only_loopback, lock_version, machine, machine_cpu, proc_cpu_time, warn_if_stale,
 };
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
-use ik_solver::{BipedModel, Side};
+use ik_solver::BipedModel;
 use node_runtime::RosArgs;
 use ros2_client::qos::History;
 use ros2_client::{NodeName, NodeOptions, Publisher};
@@ -147,16 +147,7 @@ fn run() -> anyhow::Result<()> {
     let bins = bin_dir()?;
     let model = BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None)?;
     let targets = walk_targets(&model)?;
-    let leg_joints: Vec<String> = Side::BOTH
-        .iter()
-        .flat_map(|&s| {
-            model
-                .leg(s)
-                .present()
-                .map(|(_, j)| j.name.clone())
-                .collect::<Vec<_>>()
-        })
-        .collect();
+    let leg_joints: Vec<String> = model.leg_joints().map(|(_, j)| j.name.clone()).collect();
     let clock = StampClock::new();
     let rates = [(100.0, opts.n_100hz), (1000.0, opts.n_1khz)];
 

@@ -226,15 +226,9 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
         plan.len(),
         "joint commands received for the walk's ticks (none lost)"
     );
-    let legs: Vec<(String, usize)> = Side::BOTH
-        .iter()
-        .flat_map(|&s| {
-            model
-                .leg(s)
-                .present()
-                .map(|(_, j)| (j.name.clone(), j.dof))
-                .collect::<Vec<_>>()
-        })
+    let legs: Vec<(String, usize)> = model
+        .leg_joints()
+        .map(|(_, j)| (j.name.clone(), j.dof))
         .collect();
     for (k, (cmd, row)) in commands.iter().zip(&plan).enumerate() {
         assert_eq!(walk[k].1, row.phase.as_str(), "tick {k}: phase");

@@ -18,7 +18,7 @@ use std::fmt;
 use nalgebra::{Isometry3, Vector3};
 
 use crate::error::{IkError, ModelError, ParameterFilesError};
-use crate::legs::{JointRole, Leg, LegRoleMap, Side, find_legs, find_legs_all};
+use crate::legs::{JointRole, Leg, LegJoint, LegRoleMap, Side, find_legs, find_legs_all};
 use crate::model::RobotModel;
 
 /// Overshoot of the reach (m) taken as rounding of a straight leg, not reported.
@@ -277,6 +277,13 @@ impl BipedModel {
     /// One leg.
     pub fn leg(&self, side: Side) -> &Leg {
         &self.legs[side.index()]
+    }
+
+    /// The joints of both legs, left then right, each hip to foot, with their leg's side.
+    pub fn leg_joints(&self) -> impl Iterator<Item = (Side, &LegJoint)> {
+        Side::BOTH
+            .into_iter()
+            .flat_map(move |s| self.leg(s).present().map(move |(_, j)| (s, j)))
     }
 
     /// Solves one leg.

@@ -17,7 +17,7 @@ mod support;
 use std::path::Path;
 
 use gait_planner::{GaitParams, plan_walk};
-use ik_solver::{BipedModel, Side};
+use ik_solver::BipedModel;
 use joint_bridge::serial::{Calibration, Protocol, SerialBackend, SerialConfig};
 use joint_bridge::{
     Backend, BackendError, Backoff, BridgeConfig, Event, JointBridge, JointSpec, Lifecycle,
@@ -48,15 +48,9 @@ fn walk(steps: u32) -> Walk {
     // which smooths it (a unit or two off the plan for a tick).
     let params = GaitParams::slow(&model);
     let samples = plan_walk(model.clone(), params, steps).unwrap();
-    let (names, dofs): (Vec<String>, Vec<usize>) = Side::BOTH
-        .iter()
-        .flat_map(|&s| {
-            model
-                .leg(s)
-                .present()
-                .map(|(_, j)| (j.name.clone(), j.dof))
-                .collect::<Vec<_>>()
-        })
+    let (names, dofs): (Vec<String>, Vec<usize>) = model
+        .leg_joints()
+        .map(|(_, j)| (j.name.clone(), j.dof))
         .unzip();
     let mut q = vec![0.0; model.robot().dof_count()];
     let ticks = samples

@@ -109,6 +109,19 @@ impl NodeSetup {
         })
     }
 
+    /// An error naming the arguments before `--ros-args`, if any: the fleet's nodes take
+    /// only ROS arguments.
+    pub fn only_ros_args(&self) -> Result<(), RosError> {
+        if self.own_args.is_empty() {
+            Ok(())
+        } else {
+            Err(RosError::Args(format!(
+                "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
+                self.own_args
+            )))
+        }
+    }
+
     /// The `use_sim_time` parameter (false unless set true).
     pub fn use_sim_time(&self) -> bool {
         self.params

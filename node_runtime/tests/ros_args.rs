@@ -67,6 +67,17 @@ fn own_arguments_and_ros_args_blocks() {
             ("b".to_string(), Value::Bool(true))
         ]
     );
+    // A node refuses arguments outside --ros-args, naming them.
+    let setup = NodeSetup::from_args(args("--verbose --ros-args -p a:=1"), "n").unwrap();
+    let err = setup.only_ros_args().unwrap_err().to_string();
+    assert!(
+        err.contains("unexpected arguments [\"--verbose\"]"),
+        "{err}"
+    );
+    NodeSetup::from_args(args("--ros-args -p a:=1"), "n")
+        .unwrap()
+        .only_ros_args()
+        .unwrap();
 }
 
 #[test]

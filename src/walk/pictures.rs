@@ -154,14 +154,9 @@ fn top_view(
 fn joints(model: &BipedModel, rec: &Recording, summary: &WalkSummary) -> anyhow::Result<String> {
     const WIDTH_PX: u32 = 1400;
     const PANEL_H_PX: u32 = 150;
-    let leg_joints: Vec<(Side, String)> = Side::BOTH
-        .into_iter()
-        .flat_map(|s| {
-            model
-                .leg(s)
-                .present()
-                .map(move |(_, j)| (s, j.name.clone()))
-        })
+    let leg_joints: Vec<(Side, String)> = model
+        .leg_joints()
+        .map(|(s, j)| (s, j.name.clone()))
         .collect();
     let n = leg_joints.len().div_ceil(2) as u32;
     let height_px = TITLE_H_PX + n * PANEL_H_PX + X_LABELS_PX + MARGIN_PX;

@@ -493,12 +493,7 @@ fn publish(
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
 /// stops: alone in its process (the `gait_planner` binary) or composed with others in one.
 pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
-    if !setup.own_args.is_empty() {
-        anyhow::bail!(
-            "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
-            setup.own_args
-        );
-    }
+    setup.only_ros_args()?;
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
     let leg_map_file = setup.str_param(LEG_MAP_PARAM, "")?;
     let odom_tf = setup.bool_param(ODOM_TF_PARAM, true)?;

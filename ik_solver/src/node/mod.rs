@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use crate::{AnkleTarget, BipedModel, Side};
+use crate::{AnkleTarget, BipedModel};
 use biped_msgs::msg::{AnkleTargets, JointState};
 use nalgebra::Vector3;
 use node_runtime::{Host, NodeSetup, RosNode};
@@ -54,26 +54,15 @@ fn solve(
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
 /// stops: alone in its process (the `ik_solver` binary) or composed with others in one.
 pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
-    if !setup.own_args.is_empty() {
-        anyhow::bail!(
-            "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
-            setup.own_args
-        );
-    }
+    setup.only_ros_args()?;
     node_runtime::check_known(&setup.params, &[ROBOT_PARAM, LEG_MAP_PARAM])?;
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
     let leg_map_file = setup.str_param(LEG_MAP_PARAM, "")?;
     let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     // The leg joints, left then right, hip to foot.
-    let (names, dofs): (Vec<String>, Vec<usize>) = Side::BOTH
-        .iter()
-        .flat_map(|&s| {
-            model
-                .leg(s)
-                .present()
-                .map(|(_, j)| (j.name.clone(), j.dof))
-                .collect::<Vec<_>>()
-        })
+    let (names, dofs): (Vec<String>, Vec<usize>) = model
+        .leg_joints()
+        .map(|(_, j)| (j.name.clone(), j.dof))
         .unzip();
 
     let declared = BTreeMap::from([

@@ -49,12 +49,7 @@ fn tf_message(frames: &[FrameTransform<'_>], stamp: Time, prefix: &str) -> TFMes
 }
 
 async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
-    if !setup.own_args.is_empty() {
-        anyhow::bail!(
-            "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
-            setup.own_args
-        );
-    }
+    setup.only_ros_args()?;
     node_runtime::check_known(&setup.params, &[ROBOT_PARAM, PREFIX_PARAM])?;
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
     let prefix = setup.str_param(PREFIX_PARAM, "")?;

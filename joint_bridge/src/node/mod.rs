@@ -96,12 +96,7 @@ const PARAMS: [&str; 16] = [
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
 /// stops: alone in its process (the `joint_bridge` binary) or composed with others in one.
 pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
-    if !setup.own_args.is_empty() {
-        anyhow::bail!(
-            "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
-            setup.own_args
-        );
-    }
+    setup.only_ros_args()?;
     let known: Vec<&str> = PARAMS
         .iter()
         .chain(&serial_setup::PARAMS)

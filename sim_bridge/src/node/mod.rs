@@ -265,12 +265,7 @@ impl Outputs {
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
 /// stops: alone in its process (the `sim_bridge` binary) or composed with others in one.
 pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
-    if !setup.own_args.is_empty() {
-        anyhow::bail!(
-            "unexpected arguments {:?}; the node takes only --ros-args (see the README)",
-            setup.own_args
-        );
-    }
+    setup.only_ros_args()?;
     let known: Vec<&str> = SIM_PARAMS.iter().chain(&NODE_PARAMS).copied().collect();
     node_runtime::check_known(&setup.params, &known)?;
     let robot_file = setup.str_param("robot_description_file", "")?;
