@@ -3,6 +3,7 @@ use std::{
   collections::HashMap,
   io,
   net::{IpAddr, SocketAddr, UdpSocket},
+  sync::Arc,
 };
 #[cfg(test)]
 use std::net::Ipv4Addr;
@@ -27,6 +28,10 @@ use crate::{
 #[derive(Debug)]
 pub struct UDPSender {
   unicast_socket: UdpSocket,
+  // The same socket (a duplicated descriptor, so also non-blocking), shareable
+  // with writing threads that send fresh samples themselves
+  // (`writer_send_buffer::DirectRoute`).
+  direct_socket: Arc<UdpSocket>,
   // One multicast sender socket per local interface, keyed by the interface it
   // was bound to (its `InterfaceSelector`). This lets us target a single
   // interface instead of sending on all of them.
@@ -156,8 +161,10 @@ impl UDPSender {
       multicast_sockets.push((InterfaceSelector::Ip(multicast_if_ipaddr), mc_socket));
     } // end for
 
+    let direct_socket = Arc::new(unicast_socket.try_clone()?);
     let sender = Self {
       unicast_socket,
+      direct_socket,
       multicast_sockets,
       control_queues: RefCell::new(HashMap::new()),
     };
@@ -168,6 +175,11 @@ impl UDPSender {
   #[cfg(test)]
   pub fn new_with_random_port() -> io::Result<Self> {
     Self::new(0)
+  }
+
+  /// The unicast sender socket, for writing threads that send themselves.
+  pub(crate) fn direct_socket(&self) -> Arc<UdpSocket> {
+    Arc::clone(&self.direct_socket)
   }
 
   // --- nonblocking-transmit: socket enumeration & raw non-blocking send ------

@@ -4,7 +4,8 @@ use std::{
   collections::{BTreeMap, BTreeSet},
   ops::Bound::Included,
   rc::Rc,
-  sync::{atomic, mpsc::TrySendError},
+  net::SocketAddr,
+  sync::{atomic, mpsc::TrySendError, Arc},
 };
 
 #[allow(unused_imports)]
@@ -37,7 +38,7 @@ use crate::{
     rtps_reader_proxy::RtpsReaderProxy,
     timed_event::DpTimerEvent,
     transmit::{DefaultRouteSelector, InterfaceObservations, RouteKey},
-    writer_send_buffer::WriterSendBuffer,
+    writer_send_buffer::{DirectRoute, WriterSendBuffer},
     Message, MessageBuilder,
   },
   structure::{
@@ -135,7 +136,9 @@ pub(crate) struct WriterIngredients {
 
 pub(crate) struct Writer {
   pub endianness: Endianness,
-  pub heartbeat_message_counter: atomic::AtomicI32,
+  /// Shared with the [`DirectRoute`] of the send buffer, whose writing
+  /// threads piggyback heartbeats too.
+  pub heartbeat_message_counter: Arc<atomic::AtomicI32>,
   /// Configures the mode in which the
   /// Writer operates. If
   /// pushMode==true, then the Writer
@@ -330,9 +333,9 @@ impl Writer {
       },
     );
 
-    Self {
+    let writer = Self {
       endianness: Endianness::LittleEndian,
-      heartbeat_message_counter: atomic::AtomicI32::new(1),
+      heartbeat_message_counter: Arc::new(atomic::AtomicI32::new(1)),
       push_mode: true,
       heartbeat_period,
       heartbeat_period_fast,
@@ -364,7 +367,10 @@ impl Writer {
       participant_status_sender,
 
       security_plugins: i.security_plugins,
-    }
+    };
+    // Until a reader matches, writing threads need not wake the event loop.
+    writer.refresh_direct_route();
+    writer
   }
 
   /// Entity id encoded as a mio token. The internal poll no longer registers
@@ -776,7 +782,14 @@ impl Writer {
     // while we are here pushes another id, so the next wake runs us again. The
     // shared buffer's `last_seq` is the source of truth.
     loop {
-      let last_available = self.send_buffer.last_change_sequence_number();
+      let (last_available, sent_frontier) = self.send_buffer.last_and_sent_sequence_numbers();
+      if sent_frontier > self.last_sent && self.sample_cursor == SampleCursor::Fresh {
+        // Sent by writing threads themselves (`DirectRoute`): a sample is sent
+        // so only when everything before it was on the wire, so up to
+        // `sent_frontier` nothing is left to send.
+        self.last_sent = sent_frontier;
+        continue;
+      }
       if self.last_sent >= last_available {
         break;
       }
@@ -2128,6 +2141,51 @@ impl Writer {
       .map(RtpsReaderProxy::max_datagram_payload)
       .min()
       .unwrap_or(FALLBACK_MAX_AGGREGATED_DATAGRAM_SIZE);
+    self.refresh_direct_route();
+  }
+
+  /// Publish to the send buffer how writing threads may send fresh samples
+  /// themselves (see [`DirectRoute`]), or withdraw it. Called whenever the
+  /// matched readers, their routes or the datagram budget change.
+  fn refresh_direct_route(&self) {
+    self.send_buffer.set_direct_route(self.direct_route());
+  }
+
+  /// The route the aggregated push (`try_send_aggregated_batch`) would take,
+  /// if it is one unicast datagram per distinct destination.
+  fn direct_route(&self) -> Option<DirectRoute> {
+    if self.my_guid.entity_id.kind().is_built_in()
+      || !self.push_mode
+      || self.like_stateless
+      || self.security_plugins.is_some()
+      || !self.extra_unicast_destinations.is_empty()
+    {
+      return None;
+    }
+    let mut destinations: Vec<SocketAddr> = Vec::with_capacity(self.readers.len());
+    for reader in self.readers.values() {
+      let route = reader.send_route();
+      // The aggregated push prefers a multicast route; the legacy fallback
+      // sends to every locator. Either way: leave it to the event loop.
+      if route.fallback || route.multicast.is_some() {
+        return None;
+      }
+      let destination = match route.unicast {
+        Some(Locator::UdpV4(sa)) => SocketAddr::from(sa),
+        _ => return None,
+      };
+      if !destinations.contains(&destination) {
+        destinations.push(destination);
+      }
+    }
+    Some(DirectRoute {
+      socket: self.udp_sender.direct_socket(),
+      destinations,
+      endianness: self.endianness,
+      max_payload: self.max_unfragmented_serialized_payload(None),
+      heartbeat_count: (self.is_reliable() && !self.like_stateless)
+        .then(|| Arc::clone(&self.heartbeat_message_counter)),
+    })
   }
 
   /// Refresh the [`SendRoute`](crate::rtps::transmit::SendRoute) of every
@@ -2150,6 +2208,7 @@ impl Writer {
 
   fn matched_reader_remove(&mut self, guid: GUID) -> Option<RtpsReaderProxy> {
     let removed = self.readers.remove(&guid);
+    self.refresh_direct_route();
     if let Some(ref removed_reader) = removed {
       info!(
         "Removed reader proxy. topic={:?} reader={:?}",

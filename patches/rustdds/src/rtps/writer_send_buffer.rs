@@ -1,7 +1,11 @@
 use std::{
   cmp::max,
   collections::BTreeMap,
-  sync::{Arc, Condvar, Mutex},
+  net::{SocketAddr, UdpSocket},
+  sync::{
+    atomic::{AtomicI32, Ordering},
+    Arc, Condvar, Mutex,
+  },
   time::{Duration as StdDuration, Instant},
 };
 use core::task::Waker;
@@ -9,18 +13,33 @@ use core::task::Waker;
 #[allow(unused_imports)]
 use log::{debug, error, trace, warn};
 
+use speedy::Endianness;
+
 use crate::{
   dds::{ddsdata::DDSData, with_key::datawriter::WriteOptions},
+  rtps::message::MessageBuilder,
   structure::{
-    cache_change::CacheChange, guid::GUID, sequence_number::SequenceNumber, time::Timestamp,
+    cache_change::CacheChange,
+    guid::{EntityId, GUID},
+    sequence_number::SequenceNumber,
+    time::Timestamp,
   },
 };
 
+/// A sample admitted into the [`WriterSendBuffer`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Admitted {
+  pub sequence_number: SequenceNumber,
+  /// The writing thread has also put it on the wire to every matched reader
+  /// (see [`DirectRoute`]), so the event loop need not be woken; otherwise it
+  /// is ready for the Writer (event loop) to transmit.
+  pub sent_directly: bool,
+}
+
 /// Result of an admission attempt into the [`WriterSendBuffer`].
 pub(crate) enum Admission {
-  /// The sample was admitted and given this sequence number. It now lives in
-  /// the send buffer and is ready for the Writer (event loop) to transmit.
-  Admitted(SequenceNumber),
+  /// The sample was admitted. It now lives in the send buffer.
+  Admitted(Admitted),
   /// The reliable send window is full and no room became available within the
   /// allotted blocking time. The sample was *not* stored.
   WouldBlock,
@@ -75,6 +94,41 @@ struct Inner {
   // Wakers of async producers / ack-waiters parked because the window was full
   // or acknowledgements were still pending. Drained (woken) on any advance.
   wakers: Vec<Waker>,
+
+  // Set by the Writer while every matched reader is reached by one unicast
+  // datagram: the writing thread then sends a fresh sample itself.
+  direct: Option<DirectRoute>,
+}
+
+/// How the writing thread can send a fresh sample itself, as the Writer's
+/// aggregated push would (one datagram, INFO_TS? + DATA + HEARTBEAT, to
+/// every matched reader), instead of waking the event loop to do it. Saves one
+/// thread hand-off per sample on the latency path.
+///
+/// Published by the Writer (event loop) whenever its matched readers or their
+/// routes change, and only while every reader has a resolved unicast route (no
+/// multicast, no legacy all-locators fallback), the writer is a user writer in
+/// push mode without security. A sample is sent directly only when it is the
+/// next one to go out (everything before it is on the wire, so the order on
+/// the wire is the order of sequence numbers and the event loop has nothing in
+/// progress), fits one datagram and is meant for all readers. Any send that
+/// does not fully succeed (WouldBlock, an error) leaves the sample to the event
+/// loop, which then sends it to all readers as before: a reader may get a
+/// duplicate, which it discards by sequence number. Reliability is unchanged:
+/// the sample is in the send buffer, acknowledged and repaired by the Writer.
+#[derive(Clone, Debug)]
+pub(crate) struct DirectRoute {
+  /// The participant's unicast sender socket (a duplicate descriptor, so
+  /// non-blocking like the event loop's).
+  pub socket: Arc<UdpSocket>,
+  /// Distinct destinations of the matched readers (possibly none).
+  pub destinations: Vec<SocketAddr>,
+  pub endianness: Endianness,
+  /// Largest payload the Writer sends unfragmented.
+  pub max_payload: usize,
+  /// The Writer's heartbeat counter, for the HEARTBEAT piggybacked on each DATA
+  /// (reliable, stateful writers); `None` sends no HEARTBEAT.
+  pub heartbeat_count: Option<Arc<AtomicI32>>,
 }
 
 struct Shared {
@@ -133,6 +187,7 @@ impl WriterSendBuffer {
           sent_frontier: SequenceNumber::new(0),
           max_retain: max_retain.max(1),
           wakers: Vec::new(),
+          direct: None,
         }),
         progress: Condvar::new(),
         writer_guid,
@@ -215,7 +270,10 @@ impl WriterSendBuffer {
     loop {
       if Self::has_room(shared, &inner, may_block) {
         let seq = Self::insert_locked(shared, &mut inner, write_options, data, may_block);
-        return Admission::Admitted(seq);
+        return Admission::Admitted(Admitted {
+          sequence_number: seq,
+          sent_directly: Self::send_directly_locked(shared, &mut inner, seq),
+        });
       }
       // Window full: wait for an acknowledgement to free up space.
       match deadline {
@@ -235,27 +293,25 @@ impl WriterSendBuffer {
     }
   }
 
-  /// Non-blocking admission for async writers. On success returns the allocated
-  /// sequence number. On a full window returns the (write_options, data) back
-  /// so the caller can retry later, and registers `waker` to be woken when
-  /// room becomes available.
+  /// Non-blocking admission for async writers. On success returns the
+  /// admission (sequence number, and whether it was sent directly). On a full
+  /// window returns the (write_options, data) back so the caller can retry
+  /// later, and registers `waker` to be woken when room becomes available.
   pub fn try_admit(
     &self,
     write_options: WriteOptions,
     data: DDSData,
     waker: &Waker,
-  ) -> Result<SequenceNumber, (WriteOptions, DDSData)> {
+  ) -> Result<Admitted, (WriteOptions, DDSData)> {
     let shared = &*self.shared;
     let mut inner = shared.inner.lock().unwrap();
     let may_block = shared.reliable_writer || write_options.best_effort_may_block();
     if Self::has_room(shared, &inner, may_block) {
-      Ok(Self::insert_locked(
-        shared,
-        &mut inner,
-        write_options,
-        data,
-        may_block,
-      ))
+      let seq = Self::insert_locked(shared, &mut inner, write_options, data, may_block);
+      Ok(Admitted {
+        sequence_number: seq,
+        sent_directly: Self::send_directly_locked(shared, &mut inner, seq),
+      })
     } else {
       register_waker(&mut inner.wakers, waker);
       Err((write_options, data))
@@ -311,7 +367,82 @@ impl WriterSendBuffer {
     seq
   }
 
+  // Send the just-admitted sample `seq` from the writing thread, under the
+  // buffer's lock (so the event loop cannot send it at the same time, and
+  // samples of concurrent writes go out in order). See [`DirectRoute`].
+  fn send_directly_locked(shared: &Shared, inner: &mut Inner, seq: SequenceNumber) -> bool {
+    let Some(route) = inner.direct.as_ref() else {
+      return false;
+    };
+    if inner.sent_frontier.plus_1() != seq {
+      return false;
+    }
+    let Some(cc) = inner.changes.get(&seq) else {
+      return false; // trimmed at once (cannot happen for the newest sample)
+    };
+    if cc.data_value.payload_size() > route.max_payload
+      || cc.write_options.to_single_reader().is_some()
+    {
+      return false;
+    }
+    let mut builder = MessageBuilder::new();
+    if let Some(ts) = cc.write_options.source_timestamp() {
+      builder = builder.ts_msg(route.endianness, Some(ts));
+    }
+    builder = builder.data_msg(
+      cc,
+      EntityId::UNKNOWN, // to all readers
+      shared.writer_guid,
+      route.endianness,
+      None,
+    );
+    if let Some(count) = &route.heartbeat_count {
+      builder = builder.heartbeat_msg(
+        shared.writer_guid.entity_id,
+        inner.first_seq,
+        inner.last_seq,
+        count.fetch_add(1, Ordering::SeqCst),
+        route.endianness,
+        EntityId::UNKNOWN, // to all readers
+        false,             // final_flag: request ACKNACK
+        false,             // liveliness_flag
+      );
+    }
+    let message = builder.add_header_and_build(shared.writer_guid.prefix);
+    let buffer = match message.write_to_vec_fast(route.endianness) {
+      Ok(b) => b,
+      Err(e) => {
+        debug!("direct send: cannot serialise, left to the event loop: {e:?}");
+        return false;
+      }
+    };
+    for destination in &route.destinations {
+      match route.socket.send_to(&buffer, destination) {
+        Ok(n) if n == buffer.len() => {}
+        other => {
+          trace!("direct send to {destination}: {other:?}, left to the event loop");
+          return false;
+        }
+      }
+    }
+    inner.sent_frontier = seq;
+    true
+  }
+
   // --- consumer side (Writer / event loop) ---
+
+  /// Publish (or withdraw, `None`) the route on which writing threads send
+  /// fresh samples themselves. See [`DirectRoute`].
+  pub fn set_direct_route(&self, route: Option<DirectRoute>) {
+    self.shared.inner.lock().unwrap().direct = route;
+  }
+
+  /// The latest allocated sequence number and the highest one on the wire, in
+  /// one look (a directly sent sample advances the latter without the Writer).
+  pub fn last_and_sent_sequence_numbers(&self) -> (SequenceNumber, SequenceNumber) {
+    let inner = self.shared.inner.lock().unwrap();
+    (inner.last_seq, inner.sent_frontier)
+  }
 
   /// Update the reliable acknowledgement frontier. `acked_before` is the
   /// minimum `all_acked_before` over all matched reliable readers, and
@@ -474,6 +605,138 @@ mod tests {
     WriteOptionsBuilder::new()
       .best_effort_may_block(true)
       .build()
+  }
+
+  // A user writer whose readers all have a unicast route: the buffer with a
+  // direct route, and a socket standing in for the readers.
+  fn buffer_with_direct_route(reliable: bool) -> (WriterSendBuffer, UdpSocket) {
+    let buf = WriterSendBuffer::new(
+      GUID::dummy_test_guid(crate::structure::guid::EntityKind::WRITER_WITH_KEY_USER_DEFINED),
+      "direct".to_string(),
+      reliable,
+      /* is_builtin */ false,
+      /* volatile */ true,
+      /* window_limit */ 100,
+      /* backlog_limit */ 100,
+      /* max_retain */ 100,
+    );
+    let reader = UdpSocket::bind("127.0.0.1:0").unwrap();
+    reader
+      .set_read_timeout(Some(StdDuration::from_secs(5)))
+      .unwrap();
+    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket.set_nonblocking(true).unwrap();
+    buf.set_direct_route(Some(DirectRoute {
+      socket: Arc::new(socket),
+      destinations: vec![reader.local_addr().unwrap()],
+      endianness: Endianness::LittleEndian,
+      max_payload: 1000,
+      heartbeat_count: reliable.then(|| Arc::new(AtomicI32::new(7))),
+    }));
+    (buf, reader)
+  }
+
+  fn admit(buf: &WriterSendBuffer, payload_len: usize) -> Admitted {
+    match buf.admit_blocking(
+      WriteOptions::default(),
+      DDSData::new(SerializedPayload::new(
+        RepresentationIdentifier::CDR_LE,
+        vec![0u8; payload_len],
+      )),
+      Some(StdDuration::ZERO),
+    ) {
+      Admission::Admitted(a) => a,
+      Admission::WouldBlock => panic!("not admitted"),
+    }
+  }
+
+  // The DATA sequence numbers and HEARTBEAT (first, last, count) of one
+  // received datagram.
+  #[allow(clippy::type_complexity)]
+  fn receive(reader: &UdpSocket) -> (Vec<i64>, Vec<(i64, i64, i32)>) {
+    use crate::{messages::submessages::submessages::WriterSubmessage, rtps::message::Message};
+    let mut datagram = [0u8; 2048];
+    let n = reader.recv(&mut datagram).expect("a datagram");
+    let message =
+      Message::read_from_buffer(&bytes::Bytes::copy_from_slice(&datagram[..n])).unwrap();
+    let (mut data, mut heartbeats) = (Vec::new(), Vec::new());
+    for sub in message.submessages() {
+      match sub.body {
+        crate::rtps::submessage::SubmessageBody::Writer(WriterSubmessage::Data(d, _)) => {
+          data.push(i64::from(d.writer_sn));
+        }
+        crate::rtps::submessage::SubmessageBody::Writer(WriterSubmessage::Heartbeat(h, _)) => {
+          heartbeats.push((i64::from(h.first_sn), i64::from(h.last_sn), h.count));
+        }
+        _ => {}
+      }
+    }
+    (data, heartbeats)
+  }
+
+  // With a direct route the writing thread sends the sample itself, DATA with
+  // a HEARTBEAT for reliable writers, and marks it sent, so the event loop
+  // (which is not woken) sends nothing more.
+  #[test]
+  fn a_sample_is_sent_by_the_writing_thread_on_a_direct_route() {
+    let (buf, reader) = buffer_with_direct_route(true);
+    let first = admit(&buf, 8);
+    assert!(first.sent_directly, "{first:?}");
+    assert_eq!(receive(&reader), (vec![1], vec![(1, 1, 7)]));
+    let second = admit(&buf, 8);
+    assert!(second.sent_directly, "{second:?}");
+    assert_eq!(receive(&reader), (vec![2], vec![(1, 2, 8)]));
+    assert_eq!(
+      buf.last_and_sent_sequence_numbers(),
+      (SequenceNumber::new(2), SequenceNumber::new(2))
+    );
+
+    let (buf, reader) = buffer_with_direct_route(false);
+    assert!(admit(&buf, 8).sent_directly);
+    assert_eq!(
+      receive(&reader),
+      (vec![1], vec![]),
+      "best effort: no HEARTBEAT"
+    );
+  }
+
+  // A sample is sent directly only when everything before it is on the wire
+  // and it fits one datagram; otherwise it is left to the event loop, and so
+  // is everything after it until the event loop has caught up. Without a
+  // route, nothing is sent directly.
+  #[test]
+  fn a_sample_goes_to_the_event_loop_when_it_cannot_be_sent_in_order_in_one_datagram() {
+    let (buf, reader) = buffer_with_direct_route(true);
+    let big = admit(&buf, 2000);
+    assert!(!big.sent_directly, "larger than max_payload: {big:?}");
+    let after = admit(&buf, 8);
+    assert!(!after.sent_directly, "seq 1 not on the wire yet: {after:?}");
+    assert_eq!(
+      buf.last_and_sent_sequence_numbers(),
+      (SequenceNumber::new(2), SequenceNumber::new(0))
+    );
+    // The event loop sends 1 and 2; then the next goes directly again.
+    buf.set_sent_frontier(SequenceNumber::new(2));
+    assert!(admit(&buf, 8).sent_directly);
+    assert_eq!(receive(&reader).0, vec![3]);
+
+    buf.set_direct_route(None);
+    assert!(!admit(&buf, 8).sent_directly);
+  }
+
+  // A send that fails (here: an IPv6 destination on an IPv4 socket) leaves the
+  // sample unsent, for the event loop.
+  #[test]
+  fn a_failed_direct_send_leaves_the_sample_to_the_event_loop() {
+    let (buf, _reader) = buffer_with_direct_route(true);
+    let mut route = buf.shared.inner.lock().unwrap().direct.clone().unwrap();
+    route.destinations.push("[::1]:9".parse().unwrap());
+    buf.set_direct_route(Some(route));
+    assert!(!admit(&buf, 8).sent_directly);
+    assert_eq!(
+      buf.last_and_sent_sequence_numbers(),
+      (SequenceNumber::new(1), SequenceNumber::new(0))
+    );
   }
 
   // DDS v1.4 2.2.2.4.2.11: a write without a source timestamp is stamped with

@@ -25,7 +25,7 @@ use crate::{
   discovery::{discovery::DiscoveryCommand, sedp_messages::SubscriptionBuiltinTopicData},
   messages::submessages::elements::serialized_payload::SerializedPayload,
   polling::{Doorbell, WakeSender},
-  rtps::writer_send_buffer::{Admission, WriterSendBuffer},
+  rtps::writer_send_buffer::{Admission, Admitted, WriterSendBuffer},
   serialization::CDRSerializerAdapter,
   structure::{
     cache_change::ChangeKind, entity::RTPSEntity, guid::GUID, rpc::SampleIdentity,
@@ -406,8 +406,13 @@ where
       .send_buffer
       .admit_blocking(write_options, ddsdata, timeout)
     {
-      Admission::Admitted(sequence_number) => {
-        self.ring_doorbell();
+      Admission::Admitted(Admitted {
+        sequence_number,
+        sent_directly,
+      }) => {
+        if !sent_directly {
+          self.ring_doorbell();
+        }
         self.refresh_manual_liveliness();
         Ok(SampleIdentity {
           writer_guid: self.my_guid,
@@ -853,8 +858,10 @@ where
       .send_buffer
       .admit_blocking(WriteOptions::from(source_timestamp), ddsdata, timeout)
     {
-      Admission::Admitted(_seq) => {
-        self.ring_doorbell();
+      Admission::Admitted(Admitted { sent_directly, .. }) => {
+        if !sent_directly {
+          self.ring_doorbell();
+        }
         self.refresh_manual_liveliness();
         Ok(())
       }
@@ -965,8 +972,13 @@ where
       .send_buffer
       .try_admit(write_options, ddsdata, cx.waker())
     {
-      Ok(sequence_number) => {
-        self.writer.ring_doorbell();
+      Ok(Admitted {
+        sequence_number,
+        sent_directly,
+      }) => {
+        if !sent_directly {
+          self.writer.ring_doorbell();
+        }
         self.writer.refresh_manual_liveliness();
         Poll::Ready(Ok(SampleIdentity {
           writer_guid: self.writer.my_guid,
