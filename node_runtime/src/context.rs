@@ -113,24 +113,49 @@ pub fn static_peers_from(var: impl Fn(&str) -> Option<String>) -> Result<Vec<IpA
         .collect()
 }
 
+/// Which thread puts a node's messages on the wire.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SendThread {
+    /// The publishing thread itself, during `publish`: one thread hand-off less per message
+    /// (the lowest latency), the default.
+    Publishing,
+    /// The DDS participant's own thread, woken for each message: for composed nodes on one
+    /// executor thread, which is the process's bottleneck, while the DDS thread sends on the
+    /// other core (BENCHMARKS.md, "A writer that sends its own DATA").
+    Dds,
+}
+
 /// A DDS context for the environment's domain, discovery range and static peers. With
 /// LOCALHOST, DDS traffic stays on 127.0.0.1.
 pub fn context_from_env() -> Result<Context, RosError> {
+    context_from_env_sending_on(SendThread::Publishing)
+}
+
+/// [`context_from_env`], with messages sent on the given thread.
+pub fn context_from_env_sending_on(send: SendThread) -> Result<Context, RosError> {
     let (domain, range) = ros_environment()?;
-    context_for(domain, range)
+    context_with_peers(domain, range, &static_peers_for(range)?, send)
 }
 
 /// A DDS context for a domain and discovery range, with the static peers of the
 /// environment's `ROS_STATIC_PEERS` (not read with OFF, which uses none). With LOCALHOST,
 /// DDS traffic stays on 127.0.0.1.
 pub fn context_for(domain: u16, range: DiscoveryRange) -> Result<Context, RosError> {
-    let peers = match range {
-        DiscoveryRange::Off => Vec::new(),
+    context_with_peers(
+        domain,
+        range,
+        &static_peers_for(range)?,
+        SendThread::Publishing,
+    )
+}
+
+fn static_peers_for(range: DiscoveryRange) -> Result<Vec<IpAddr>, RosError> {
+    match range {
+        DiscoveryRange::Off => Ok(Vec::new()),
         DiscoveryRange::Localhost | DiscoveryRange::Subnet => {
-            static_peers_from(|name| std::env::var(name).ok())?
+            static_peers_from(|name| std::env::var(name).ok())
         }
-    };
-    context_with_peers(domain, range, &peers)
+    }
 }
 
 /// A DDS context for a domain, a discovery range and static peers, as ROS 2 Jazzy's
@@ -138,17 +163,20 @@ pub fn context_for(domain: u16, range: DiscoveryRange) -> Result<Context, RosErr
 /// participants by multicast on the local networks; LOCALHOST keeps DDS traffic on
 /// 127.0.0.1; both also announce themselves by unicast to the static peers (with
 /// LOCALHOST, only peers on this machine can answer). OFF discovers nothing: no multicast,
-/// no announcements, other participants refused, static peers unused.
+/// no announcements, other participants refused, static peers unused. `send`: which thread
+/// sends a message.
 pub fn context_with_peers(
     domain: u16,
     range: DiscoveryRange,
     static_peers: &[IpAddr],
+    send: SendThread,
 ) -> Result<Context, RosError> {
     let dds = |what: &str, e: &dyn std::fmt::Display| RosError::Dds {
         what: what.into(),
         message: e.to_string(),
     };
-    let builder = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain);
+    let builder = ros2_client::dds::rustdds::DomainParticipantBuilder::new(domain)
+        .send_from_writing_thread(send == SendThread::Publishing);
     let builder = match range {
         DiscoveryRange::Localhost => builder
             .with_only_networks([IpAddr::V4(Ipv4Addr::LOCALHOST)])

@@ -31,8 +31,8 @@ pub mod qos;
 pub use args::{RosArgs, topic_name};
 pub use clock::{Tick, TickSource, Ticker};
 pub use context::{
-    DiscoveryRange, context_for, context_from_env, context_with_peers, ros_environment,
-    ros_environment_from, static_peers_from,
+    DiscoveryRange, SendThread, context_for, context_from_env, context_from_env_sending_on,
+    context_with_peers, ros_environment, ros_environment_from, static_peers_from,
 };
 pub use error::RosError;
 pub use local::{Publisher, Subscription};

@@ -11,7 +11,7 @@ use ros2_client::{Context, Node, NodeName, NodeOptions, ParameterValue};
 use serde_norway::Value;
 
 use crate::args::{RosArgs, topic_name};
-use crate::context::context_from_env;
+use crate::context::{SendThread, context_from_env, context_from_env_sending_on};
 use crate::error::RosError;
 use crate::local::{Bus, Publisher, RosMessageBound, Subscription};
 use crate::log::Log;
@@ -251,10 +251,11 @@ impl Host {
     /// Nodes composed in one process, each with a clone of this host (on one thread or
     /// each on its own): one DDS participant (the environment's domain) for all of them,
     /// and a message one of them publishes reaches the others in-process (and outside
-    /// peers on DDS). `stop` ends them all.
+    /// peers on DDS, sent by the participant's DDS thread: [`SendThread::Dds`]). `stop`
+    /// ends them all.
     pub fn composed(stop: std::sync::Arc<std::sync::atomic::AtomicBool>) -> Result<Self, RosError> {
         Ok(Self {
-            context: context_from_env()?,
+            context: context_from_env_sending_on(SendThread::Dds)?,
             bus: Some(std::sync::Arc::new(Bus::default())),
             stop,
         })

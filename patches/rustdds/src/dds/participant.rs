@@ -80,6 +80,7 @@ pub struct DomainParticipantBuilder {
   multicast: bool,          // join the multicast groups and announce multicast locators
   remote_participants: bool, // discover other participants at all
   static_peers: Vec<IpAddr>, // hosts announced to by unicast SPDP
+  send_from_writing_thread: bool, // writers send fresh samples on the writing thread
 
   socket_receive_buffer_size: usize,
   socket_send_buffer_size: usize,
@@ -99,6 +100,7 @@ impl DomainParticipantBuilder {
       multicast: true,
       remote_participants: true,
       static_peers: Vec::new(),
+      send_from_writing_thread: true,
       socket_receive_buffer_size: Self::DEFAULT_SOCKET_RECEIVE_BUFFER_SIZE,
       socket_send_buffer_size: Self::DEFAULT_SOCKET_SEND_BUFFER_SIZE,
       #[cfg(feature = "security")]
@@ -132,6 +134,17 @@ impl DomainParticipantBuilder {
   /// `src/rtps/loopback_same_host_design.md`.
   pub fn same_host_loopback(mut self, enabled: bool) -> Self {
     self.same_host_loopback = enabled;
+    self
+  }
+
+  /// Enable/disable sending a fresh sample on the thread that writes it
+  /// (default: enabled). Enabled, a user `DataWriter` whose matched readers are
+  /// all reached by unicast puts the sample on the wire during `write` instead
+  /// of waking the event loop thread to do it: one thread hand-off less per
+  /// sample. Disable where the writing threads are the bottleneck and the event
+  /// loop thread has a core of its own to send on.
+  pub fn send_from_writing_thread(mut self, enabled: bool) -> Self {
+    self.send_from_writing_thread = enabled;
     self
   }
 
@@ -387,6 +400,7 @@ impl DomainParticipantBuilder {
         multicast: self.multicast,
         remote_participants: self.remote_participants,
         static_peers: self.static_peers,
+        send_from_writing_thread: self.send_from_writing_thread,
       },
       dp_waker,
       discovery_sample_sender,

@@ -156,6 +156,9 @@ pub(crate) struct DiscoveryReach {
   pub remote_participants: bool,
   /// Hosts to announce to by unicast SPDP.
   pub static_peers: Vec<IpAddr>,
+  /// Not discovery, but carried with it from the builder: user writers send
+  /// fresh samples on the writing thread (`Writer::set_send_from_writing_thread`).
+  pub send_from_writing_thread: bool,
 }
 
 impl DPEventLoop {
@@ -1162,6 +1165,7 @@ impl DPEventLoop {
     // See `src/rtps/loopback_same_host_design.md`.
     // - the static peers get the same announcements at their addresses.
     new_writer.set_prefer_loopback_same_host(self.reach.same_host_loopback);
+    new_writer.set_send_from_writing_thread(self.reach.send_from_writing_thread);
     if new_writer.guid().entity_id == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER {
       let mut destinations = Vec::new();
       if self.reach.same_host_loopback {
@@ -1411,6 +1415,7 @@ mod tests {
           multicast: true,
           remote_participants: true,
           static_peers: Vec::new(),
+          send_from_writing_thread: true,
         },
         reader_ready,
         writer_ready,

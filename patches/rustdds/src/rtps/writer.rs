@@ -207,6 +207,9 @@ pub(crate) struct Writer {
   // Mirrors the participant-builder `same_host_loopback` knob; `true` by
   // default. Passed into `DefaultRouteSelector` on every route resolution.
   prefer_loopback_same_host: bool,
+  // Writing threads may send fresh samples themselves (`DirectRoute`);
+  // participant-builder `send_from_writing_thread`, `true` by default.
+  send_from_writing_thread: bool,
 
   // Interface-aware transmit: per-remote observed receive interfaces/addresses,
   // shared (intra-thread) with the MessageReceiver that records them. Consulted
@@ -352,6 +355,7 @@ impl Writer {
       udp_sender,
       extra_unicast_destinations: Vec::new(),
       prefer_loopback_same_host: true,
+      send_from_writing_thread: true,
       interface_observations,
       local_interfaces,
       min_datagram_payload: FALLBACK_MAX_AGGREGATED_DATAGRAM_SIZE,
@@ -1975,6 +1979,14 @@ impl Writer {
     self.extra_unicast_destinations = locators;
   }
 
+  /// Allow (default) or forbid writing threads to send fresh samples
+  /// themselves (see [`DirectRoute`] and the participant builder's
+  /// `send_from_writing_thread`).
+  pub fn set_send_from_writing_thread(&mut self, enabled: bool) {
+    self.send_from_writing_thread = enabled;
+    self.refresh_direct_route();
+  }
+
   /// Enable/disable preferring a same-host peer's loopback locator during route
   /// selection. See the participant-builder `same_host_loopback` knob.
   pub fn set_prefer_loopback_same_host(&mut self, enabled: bool) {
@@ -2154,7 +2166,8 @@ impl Writer {
   /// The route the aggregated push (`try_send_aggregated_batch`) would take,
   /// if it is one unicast datagram per distinct destination.
   fn direct_route(&self) -> Option<DirectRoute> {
-    if self.my_guid.entity_id.kind().is_built_in()
+    if !self.send_from_writing_thread
+      || self.my_guid.entity_id.kind().is_built_in()
       || !self.push_mode
       || self.like_stateless
       || self.security_plugins.is_some()
