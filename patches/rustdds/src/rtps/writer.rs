@@ -2137,8 +2137,8 @@ impl Writer {
         new_proxy
       });
     // A reader was added or its locators changed: refresh the writer-wide
-    // minimum datagram budget used for packing.
-    self.recompute_min_datagram_payload();
+    // minimum datagram budget used for packing, and the direct route.
+    self.matched_readers_changed();
     is_new
   }
 
@@ -2153,12 +2153,18 @@ impl Writer {
       .map(RtpsReaderProxy::max_datagram_payload)
       .min()
       .unwrap_or(FALLBACK_MAX_AGGREGATED_DATAGRAM_SIZE);
+  }
+
+  /// The matched readers, or their routes or path MTUs, changed: recompute
+  /// what is derived from all of them (the datagram budget, then the direct
+  /// route, whose payload limit depends on the budget).
+  fn matched_readers_changed(&mut self) {
+    self.recompute_min_datagram_payload();
     self.refresh_direct_route();
   }
 
   /// Publish to the send buffer how writing threads may send fresh samples
-  /// themselves (see [`DirectRoute`]), or withdraw it. Called whenever the
-  /// matched readers, their routes or the datagram budget change.
+  /// themselves (see [`DirectRoute`]), or withdraw it.
   fn refresh_direct_route(&self) {
     self.send_buffer.set_direct_route(self.direct_route());
   }
@@ -2196,7 +2202,8 @@ impl Writer {
       destinations,
       endianness: self.endianness,
       max_payload: self.max_unfragmented_serialized_payload(None),
-      heartbeat_count: (self.is_reliable() && !self.like_stateless)
+      heartbeat_count: self
+        .is_reliable()
         .then(|| Arc::clone(&self.heartbeat_message_counter)),
     })
   }
@@ -2216,12 +2223,11 @@ impl Writer {
         }
       }
     }
-    self.recompute_min_datagram_payload();
+    self.matched_readers_changed();
   }
 
   fn matched_reader_remove(&mut self, guid: GUID) -> Option<RtpsReaderProxy> {
     let removed = self.readers.remove(&guid);
-    self.refresh_direct_route();
     if let Some(ref removed_reader) = removed {
       info!(
         "Removed reader proxy. topic={:?} reader={:?}",
@@ -2248,8 +2254,10 @@ impl Writer {
         guid
       );
       self.matched_reader_remove(guid);
-      // Removing a reader may relax (raise) the writer-wide minimum budget.
-      self.recompute_min_datagram_payload();
+      // Removing a reader may relax (raise) the writer-wide minimum budget,
+      // and a reader on a multicast or fallback route gone may allow the
+      // direct route.
+      self.matched_readers_changed();
       // self.matched_readers_count_total -= 1; // this never decreases
       self.send_status(DataWriterStatus::PublicationMatched {
         total: CountWithChange::new(self.matched_readers_count_total, 0),
