@@ -146,6 +146,14 @@ pub fn compose(args: &[String]) -> anyhow::Result<()> {
         .map(|(name, a)| {
             let setup = NodeSetup::from_args(a.iter().cloned(), name)
                 .with_context(|| format!("{name}'s arguments"))?;
+            // The nodes share this process (and its DDS thread): it cannot be bound per node.
+            if setup.cpu_affinity()?.is_some() {
+                anyhow::bail!(
+                    "{name}: parameter `{}` binds a node's own process; composed nodes share \
+                     one: bind `biped compose` itself (e.g. `taskset -c 0 biped compose ...`)",
+                    node_runtime::CPU_AFFINITY_PARAM
+                );
+            }
             let run = node_run(name).context("parse takes only composable nodes")?;
             Ok((name.clone(), run, setup))
         })

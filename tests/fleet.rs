@@ -1389,3 +1389,98 @@ fn a_node_with_discovery_off_is_found_by_no_one() {
         assert_eq!(v["exits"][node]["returncode"], 0, "{}", v["exits"]);
     }
 }
+
+/// The CPUs in a `Cpus_allowed_list` line of /proc (`0-1,3`).
+fn cpu_list(text: &str) -> Vec<usize> {
+    let list = text
+        .lines()
+        .find_map(|l| l.strip_prefix("Cpus_allowed_list:"))
+        .expect("a Cpus_allowed_list line")
+        .trim();
+    list.split(',')
+        .flat_map(|part| match part.split_once('-') {
+            Some((a, b)) => (a.parse().unwrap()..=b.parse().unwrap()).collect::<Vec<usize>>(),
+            None => vec![part.parse().unwrap()],
+        })
+        .collect()
+}
+
+/// `cpu_affinity` (as ros2_control_node's) binds every thread of a node's process, the DDS
+/// threads included, to the CPUs given; a CPU it may not use is refused by number, and
+/// `biped compose` refuses it for a node (its nodes share one process).
+#[test]
+fn cpu_affinity_binds_every_thread_of_a_node_and_a_bad_cpu_is_refused_by_number() {
+    use std::io::{BufRead, BufReader};
+    // The last CPU this test may use: unless the machine has one CPU, not where an unbound
+    // node would be.
+    let ours = cpu_list(&std::fs::read_to_string("/proc/self/status").unwrap());
+    let cpu = *ours.last().unwrap();
+    let mut node = common::in_netns("exec timeout 60 \"$@\"", 196)
+        .arg(bin_dir().join("ik_solver"))
+        .args(["--ros-args", "-p", &format!("cpu_affinity:=[{cpu}]")])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("unshare runs (root needed for a private network namespace)");
+    let mut log = String::new();
+    let mut lines = BufReader::new(node.stderr.take().unwrap()).lines();
+    for line in lines.by_ref() {
+        let line = line.unwrap();
+        log.push_str(&line);
+        log.push('\n');
+        if line.contains("ready") {
+            break;
+        }
+    }
+    assert!(log.contains("ready"), "ik_solver did not start: {log}");
+    // `unshare` and `sh` exec `timeout`, whose child is the node. Every thread the node has
+    // started by now (main, signal, DDS event loop and discovery, async-io) is bound.
+    let children =
+        std::fs::read_to_string(format!("/proc/{0}/task/{0}/children", node.id())).unwrap();
+    let pid = children
+        .split_whitespace()
+        .next()
+        .expect("timeout runs the node");
+    let tasks: Vec<(String, Vec<usize>)> = std::fs::read_dir(format!("/proc/{pid}/task"))
+        .unwrap()
+        .map(|t| {
+            let status = std::fs::read_to_string(t.unwrap().path().join("status")).unwrap();
+            let name = status.lines().next().unwrap_or_default().to_owned();
+            (name, cpu_list(&status))
+        })
+        .collect();
+    // The node (killing `timeout` would leave it running); `timeout` then ends.
+    let pid = nix::unistd::Pid::from_raw(pid.parse().unwrap());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGKILL).unwrap();
+    node.wait().unwrap();
+    assert!(tasks.len() >= 3, "{tasks:?}");
+    for (name, cpus) in &tasks {
+        assert_eq!(cpus, &vec![cpu], "{name} (of {tasks:?})");
+    }
+
+    let refused = common::in_netns("exec timeout 60 \"$@\"", 197)
+        .arg(bin_dir().join("ik_solver"))
+        .args(["--ros-args", "-p", "cpu_affinity:=[1023]"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "ik_solver: error: parameters: parameter `cpu_affinity`: CPU [1023] is not one"
+        ),
+        "{err}"
+    );
+
+    let composed = common::in_netns("exec timeout 60 \"$@\"", 197)
+        .arg(bin_dir().join("biped"))
+        .args(["compose", "--node", "ik_solver", "--node", "joint_bridge"])
+        .args(["--ros-args", "-p", &format!("cpu_affinity:=[{cpu}]")])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&composed.stderr);
+    assert_eq!(composed.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("parameter `cpu_affinity` binds a node's own process"),
+        "{err}"
+    );
+}

@@ -19,6 +19,15 @@ pub enum RosError {
         /// What is wrong.
         why: String,
     },
+    /// The kernel refused to bind the process to the CPUs of `cpu_affinity`.
+    #[error("parameter `cpu_affinity`: cannot bind the process to CPUs {cpus:?}")]
+    Affinity {
+        /// The CPUs asked for.
+        cpus: Vec<usize>,
+        /// The kernel's answer.
+        #[source]
+        source: nix::errno::Errno,
+    },
     /// DDS or ros2-client refused to create something.
     #[error("{what}: {message}")]
     Dds {

@@ -13,11 +13,13 @@
 //! - [`node`]: start-up ([`NodeSetup`], [`shutdown_flag`]), where a node runs ([`Host`]:
 //!   alone in its process, or composed with others in one) and the started node
 //!   ([`RosNode`]: typed publishers and subscriptions, logging, the executor);
-//! - [`local`]: in-process delivery between nodes composed in one process.
+//! - [`local`]: in-process delivery between nodes composed in one process;
+//! - [`affinity`]: the `cpu_affinity` parameter, binding a node's process to CPUs.
 //!
 //! ros2-client (pure Rust over RustDDS) underneath; no core crate depends on this one, only
 //! the node binaries (each core crate's `node` feature) and the `biped` command.
 
+pub mod affinity;
 pub mod args;
 pub mod clock;
 pub mod context;
@@ -28,6 +30,7 @@ pub mod node;
 pub mod params;
 pub mod qos;
 
+pub use affinity::CPU_AFFINITY_PARAM;
 pub use args::{RosArgs, topic_name};
 pub use clock::{Tick, TickSource, Ticker};
 pub use context::{
@@ -41,6 +44,6 @@ pub use node::{
     Host, LAUNCH_PARENT_ENV, NodeSetup, RosNode, create_node, node_main, shutdown_flag,
 };
 pub use params::{
-    ParameterCheck, check_known, from_parameter_value, node_parameters, read_at_startup,
-    to_parameter_value,
+    COMMON_PARAMS, ParameterCheck, check_known, from_parameter_value, node_parameters,
+    read_at_startup, to_parameter_value,
 };

@@ -10,6 +10,7 @@ use biped_msgs::RosMessage;
 use ros2_client::{Context, Node, NodeName, NodeOptions, ParameterValue};
 use serde_norway::Value;
 
+use crate::affinity::{CPU_AFFINITY_PARAM, bind_this_thread, cpu_affinity_of};
 use crate::args::{RosArgs, topic_name};
 use crate::context::{SendThread, context_from_env, context_from_env_sending_on};
 use crate::error::RosError;
@@ -130,6 +131,14 @@ impl NodeSetup {
             .unwrap_or(false)
     }
 
+    /// The CPUs of the `cpu_affinity` parameter ([`crate::affinity`]); `None`: not bound.
+    pub fn cpu_affinity(&self) -> Result<Option<Vec<usize>>, RosError> {
+        match self.params.get(CPU_AFFINITY_PARAM) {
+            None => Ok(None),
+            Some(v) => cpu_affinity_of(v),
+        }
+    }
+
     /// A string parameter, or `default`.
     pub fn str_param(&self, name: &str, default: &str) -> Result<String, RosError> {
         match self.params.get(name) {
@@ -165,15 +174,20 @@ impl NodeSetup {
     }
 }
 
-/// The `main` of a node alone in its process: its setup from the command line, its host
-/// ([`Host::process`]), then `run` on this thread until it ends; an error is printed as
-/// `<name>: error: ...` and fails the process.
+/// The `main` of a node alone in its process: its setup from the command line, the process
+/// bound to the CPUs of `cpu_affinity` if set, its host ([`Host::process`]), then `run` on
+/// this thread until it ends; an error is printed as `<name>: error: ...` and fails the
+/// process.
 pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
     name: &str,
     run: impl FnOnce(NodeSetup, Host) -> F,
 ) -> std::process::ExitCode {
     let result = (|| {
         let setup = NodeSetup::from_env(name).map_err(|e| e.to_string())?;
+        // Before any other thread starts: the DDS and signal threads inherit it.
+        if let Some(cpus) = setup.cpu_affinity().map_err(|e| e.to_string())? {
+            bind_this_thread(&cpus).map_err(|e| e.to_string())?;
+        }
         let host = Host::process().map_err(|e| e.to_string())?;
         smol::block_on(run(setup, host)).map_err(|e| format!("{e:#}"))
     })();
@@ -314,12 +328,30 @@ impl RosNode {
         check: Option<ParameterCheck>,
     ) -> Result<Self, RosError> {
         let context = host.context.clone();
+        // `cpu_affinity` (bound at start-up by `node_main`) is declared, so a peer sees it,
+        // and a set from a peer is refused.
+        let mut declared = declared.clone();
+        if let Some(cpus) = setup.cpu_affinity()? {
+            declared.insert(
+                CPU_AFFINITY_PARAM.to_owned(),
+                ParameterValue::IntegerArray(cpus.iter().map(|&c| c as i64).collect()),
+            );
+        }
+        let check: ParameterCheck = Box::new(move |name: &str, value: &ParameterValue| {
+            if name == CPU_AFFINITY_PARAM {
+                Err(format!(
+                    "{name} is read at start-up; restart the node to change it"
+                ))
+            } else {
+                check.as_ref().map_or(Ok(()), |f| f(name, value))
+            }
+        });
         let node = create_node(
             &context,
             &setup.name,
             &setup.namespace,
-            declared,
-            check,
+            &declared,
+            Some(check),
             setup.use_sim_time(),
         )?;
         let log = Log::new(&node, &setup.args);

@@ -159,13 +159,22 @@ pub fn read_at_startup() -> ParameterCheck {
     })
 }
 
-/// Rejects any parameter not in `known` (besides ROS's own `use_sim_time`), naming it.
+/// The parameters every node takes besides its own: ROS's `use_sim_time`, and
+/// `cpu_affinity` (the CPUs its process is bound to, [`crate::affinity`]).
+pub const COMMON_PARAMS: [&str; 2] = ["use_sim_time", crate::affinity::CPU_AFFINITY_PARAM];
+
+/// Rejects any parameter not in `known` (besides [`COMMON_PARAMS`]), naming it.
 pub fn check_known(params: &BTreeMap<String, Value>, known: &[&str]) -> Result<(), RosError> {
     for k in params.keys() {
-        if k != "use_sim_time" && !known.contains(&k.as_str()) {
+        if !COMMON_PARAMS.contains(&k.as_str()) && !known.contains(&k.as_str()) {
             return Err(RosError::Params(format!(
                 "unknown parameter `{k}` (known: {})",
-                known.join(", ")
+                known
+                    .iter()
+                    .chain(&COMMON_PARAMS)
+                    .copied()
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )));
         }
     }

@@ -113,20 +113,16 @@ fn pause(clock: &mut PlanClock, on: bool, brake_s: f64) -> String {
     }
 }
 
-/// The gait parameters in the node's parameter map (the robot file and use_sim_time aside).
+/// The gait parameters in the node's parameter map (the robot file, the node's other own
+/// parameters and those every node takes aside).
 fn gait_params(
     params: &std::collections::BTreeMap<String, serde_norway::Value>,
 ) -> anyhow::Result<GaitParams> {
     let mut map = serde_norway::Mapping::new();
     for (k, v) in params {
-        if ![
-            ROBOT_PARAM,
-            LEG_MAP_PARAM,
-            ODOM_TF_PARAM,
-            STAND_PARAM,
-            "use_sim_time",
-        ]
-        .contains(&k.as_str())
+        let k_str = k.as_str();
+        if ![ROBOT_PARAM, LEG_MAP_PARAM, ODOM_TF_PARAM, STAND_PARAM].contains(&k_str)
+            && !node_runtime::COMMON_PARAMS.contains(&k_str)
         {
             map.insert(serde_norway::Value::String(k.clone()), v.clone());
         }
