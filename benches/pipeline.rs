@@ -23,6 +23,8 @@
 //! ```
 //!
 //! Options: `--n-100hz N` (3000), `--n-1khz N` (10000), `--only ik_solver|rclpy`, `--write`,
+//! `--cpu-affinity CPU[,CPU...]` (bind the bench and the relay to these CPUs: on a machine
+//! whose idle CPUs are slow to wake, one CPU saves a cross-CPU wake-up per hop),
 //! `--wait-idle` (before each run, wait up to 2 min until the machine is idle, and do a run
 //! that other processes disturbed anyway, over 20 % of a core on average or half a core in
 //! some 0.5 s, again, up to three times: on a shared machine a compile next door shows in
@@ -96,6 +98,8 @@ struct Opts {
     relays: Vec<Relay>,
     write: bool,
     wait_idle: bool,
+    /// `--cpu-affinity`: the CPUs the bench and the relay are bound to.
+    cpus: Option<Vec<usize>>,
 }
 
 impl Opts {
@@ -106,6 +110,7 @@ impl Opts {
             relays: vec![Relay::IkSolver, Relay::Rclpy],
             write: false,
             wait_idle: false,
+            cpus: None,
         };
         let mut it = args.into_iter();
         while let Some(a) = it.next() {
@@ -117,6 +122,16 @@ impl Opts {
                 "--wait-idle" => o.wait_idle = true,
                 "--n-100hz" => o.n_100hz = value()?.parse().context("--n-100hz")?,
                 "--n-1khz" => o.n_1khz = value()?.parse().context("--n-1khz")?,
+                "--cpu-affinity" => {
+                    let list = value()?;
+                    let yaml = serde_norway::Value::Sequence(
+                        list.split(',')
+                            .map(|c| serde_norway::from_str(c.trim()))
+                            .collect::<Result<_, _>>()
+                            .with_context(|| format!("--cpu-affinity {list}"))?,
+                    );
+                    o.cpus = node_runtime::affinity::cpu_affinity_of(&yaml)?;
+                }
                 "--only" => {
                     o.relays = match value()?.as_str() {
                         "ik_solver" => vec![Relay::IkSolver],
@@ -125,7 +140,7 @@ impl Opts {
                     }
                 }
                 other => bail!(
-                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle)"
+                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...])"
                 ),
             }
         }
@@ -142,6 +157,10 @@ fn run() -> anyhow::Result<()> {
         return common::reexec_in_netns(DOMAIN_ID);
     }
     check_only_loopback()?;
+    // Before DDS starts a thread: they all inherit it, as does the rclpy relay's process.
+    if let Some(cpus) = &opts.cpus {
+        node_runtime::affinity::bind_this_thread(cpus)?;
+    }
 
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let bins = bin_dir()?;
@@ -169,7 +188,14 @@ fn run() -> anyhow::Result<()> {
                     &["ik_solver/src", "msgs/src"],
                     "cargo build --release --workspace",
                 );
-                spawn_relay(Command::new(&exe).arg("--ros-args"), relay)?
+                let mut cmd = Command::new(&exe);
+                cmd.arg("--ros-args");
+                if let Some(cpus) = &opts.cpus {
+                    // It would inherit the bench's binding too; the parameter is what a user
+                    // would set.
+                    cmd.args(["-p", &format!("cpu_affinity:={cpus:?}")]);
+                }
+                spawn_relay(&mut cmd, relay)?
             }
             Relay::Rclpy => {
                 let python = std::env::var_os("BIPED_PYTHON")
@@ -872,8 +898,15 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
     let _ = writeln!(s, "cargo build --release --workspace");
     let _ = writeln!(s, "cargo bench --bench pipeline -- --wait-idle --write");
     let _ = writeln!(s, "```\n");
+    let bound = match &opts.cpus {
+        None => String::new(),
+        Some(cpus) => format!(
+            "; the bench and the relay bound to CPU {cpus:?} (`--cpu-affinity`; the ik_solver \
+             by its `cpu_affinity` parameter, the rclpy relay by inheriting the bench's)"
+        ),
+    };
     let measured = format!(
-        "Measured {} on {}; release build; ros2-client {}, RustDDS {}{}.",
+        "Measured {} on {}; release build{bound}; ros2-client {}, RustDDS {}{}.",
         common::today(),
         machine(),
         lock_version(root, "ros2-client"),
