@@ -15,7 +15,9 @@ sort | uniq -c`): the bench's main thread (publishes and, since the RustDDS patc
 sends a fresh sample from the writing thread", sends the DATA itself; its tid is the
 pipeline process's pid), the bench's "RustDDS Partici" thread (receives the joint
 commands), the ik_solver's "RustDDS Partici" thread, the ik_solver's main thread, and the
-bench thread that takes the joint commands (the other busy "pipeline-..." thread), and run
+bench thread that takes the joint commands (the other busy "pipeline-..." thread; the
+ik_solver's DDS thread is the one that calls recvmsg right after the bench's main thread
+sends a DATA of 204 bytes, len 0xcc), and run
 
     benches/hop_trace.py /tmp/pipe.txt PUBLISHER BENCH_DDS IK_DDS IK SUBSCRIBER
 
