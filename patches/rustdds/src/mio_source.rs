@@ -10,7 +10,10 @@ macro_rules! socketpair_bridge {
       use std::{
         io,
         io::{Read, Write},
-        sync::{Arc, Mutex},
+        sync::{
+          atomic::{AtomicBool, Ordering},
+          Arc, Mutex,
+        },
       };
       #[cfg(not(target_os = "windows"))]
       use std::os::fd::OwnedFd;
@@ -24,11 +27,33 @@ macro_rules! socketpair_bridge {
 
       pub struct Source {
         rec: Mutex<$mio::net::TcpStream>,
+        // The sending end, for the one byte that tells a new registration about what
+        // was sent before it.
+        kick: Sender,
       }
 
+      // Writes a byte for each event, but only while the Source is registered with a
+      // poll: a channel nobody polls (every reader's, when the application uses async
+      // or the plain API) would otherwise cost a system call per event on the event
+      // loop's thread, failing once its buffer is full, since nothing drains it.
       #[derive(Clone)]
       pub struct Sender {
         send: Arc<Mutex<$mio::net::TcpStream>>,
+        registered: Arc<AtomicBool>,
+      }
+
+      fn pair(rec: $mio::net::TcpStream, send: $mio::net::TcpStream) -> (Source, Sender) {
+        let sender = Sender {
+          send: Arc::new(Mutex::new(send)),
+          registered: Arc::new(AtomicBool::new(false)),
+        };
+        (
+          Source {
+            rec: Mutex::new(rec),
+            kick: sender.clone(),
+          },
+          sender,
+        )
       }
 
       #[cfg(not(target_os = "windows"))]
@@ -47,14 +72,7 @@ macro_rules! socketpair_bridge {
         let rec = $mio::net::TcpStream::from_std(std::net::TcpStream::from(OwnedFd::from(rec_sps)));
         let send =
           $mio::net::TcpStream::from_std(std::net::TcpStream::from(OwnedFd::from(send_sps)));
-        Ok((
-          Source {
-            rec: Mutex::new(rec),
-          },
-          Sender {
-            send: Arc::new(Mutex::new(send)),
-          },
-        ))
+        Ok(pair(rec, send))
       }
 
       #[cfg(target_os = "windows")]
@@ -69,18 +87,17 @@ macro_rules! socketpair_bridge {
         }
         let (send, _addr_send) = accepted?;
         debug!("IPC socket: {addr:#?} <-> {_addr_send:#?}");
-        Ok((
-          Source {
-            rec: Mutex::new(rec),
-          },
-          Sender {
-            send: Arc::new(Mutex::new(send)),
-          },
-        ))
+        Ok(pair(rec, send))
       }
 
       impl Sender {
         pub fn send(&self) {
+          if self.registered.load(Ordering::Acquire) {
+            self.write_byte();
+          }
+        }
+
+        fn write_byte(&self) {
           match self.send.lock().unwrap().write(&[0xcc]) {
             Ok(_b) => {}
             Err(e) => info!("PollEventSender.send: {e}"),
@@ -99,6 +116,13 @@ macro_rules! socketpair_bridge {
             },
           }
         }
+
+        #[cfg(test)]
+        pub fn pending_bytes(&self) -> usize {
+          let mut buf = Vec::new();
+          let _ = self.rec.lock().unwrap().read_to_end(&mut buf);
+          buf.len()
+        }
       }
 
       impl $mio::event::Source for Source {
@@ -112,7 +136,12 @@ macro_rules! socketpair_bridge {
             .rec
             .lock()
             .unwrap()
-            .register(registry, token, interests)
+            .register(registry, token, interests)?;
+          // Events from now on are written; one byte stands for any that came before,
+          // so the first poll sees the source readable and the owner looks.
+          self.kick.registered.store(true, Ordering::Release);
+          self.kick.write_byte();
+          Ok(())
         }
 
         fn reregister(
@@ -129,6 +158,7 @@ macro_rules! socketpair_bridge {
         }
 
         fn deregister(&mut self, registry: &$mio::Registry) -> io::Result<()> {
+          self.kick.registered.store(false, Ordering::Release);
           self.rec.lock().unwrap().deregister(registry)
         }
       }
@@ -309,5 +339,55 @@ impl mio_06::Evented for NotificationReceiver {
 
   fn deregister(&self, poll: &mio_06::Poll) -> std::io::Result<()> {
     self.legacy_receiver.deregister(poll)
+  }
+}
+
+#[cfg(test)]
+mod tests {
+  use std::time::Duration;
+
+  use super::*;
+
+  // A reader's poll channel that no one registers costs nothing per event; one that is
+  // registered late still wakes its poll for what came before, and then for every event.
+  #[test]
+  fn poll_events_are_written_only_once_the_source_is_registered() {
+    let (mut source, sender) = make_poll_channel().unwrap();
+    for _ in 0..5 {
+      sender.send();
+    }
+    assert_eq!(source.mio1.pending_bytes(), 0, "written while unregistered");
+
+    let mut poll = mio1::Poll::new().unwrap();
+    let mut events = mio1::Events::with_capacity(4);
+    mio1::event::Source::register(
+      &mut source,
+      poll.registry(),
+      mio1::Token(7),
+      mio1::Interest::READABLE,
+    )
+    .unwrap();
+    poll
+      .poll(&mut events, Some(Duration::from_secs(1)))
+      .unwrap();
+    assert!(
+      events
+        .iter()
+        .any(|e| e.token() == mio1::Token(7) && e.is_readable()),
+      "registering late must wake the poll for the events before it"
+    );
+    assert_eq!(source.mio1.pending_bytes(), 1);
+
+    sender.send();
+    sender.send();
+    assert_eq!(source.mio1.pending_bytes(), 2);
+
+    mio1::event::Source::deregister(&mut source, poll.registry()).unwrap();
+    sender.send();
+    assert_eq!(
+      source.mio1.pending_bytes(),
+      0,
+      "written after deregistering"
+    );
   }
 }
