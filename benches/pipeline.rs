@@ -123,13 +123,10 @@ impl Opts {
                 "--n-100hz" => o.n_100hz = value()?.parse().context("--n-100hz")?,
                 "--n-1khz" => o.n_1khz = value()?.parse().context("--n-1khz")?,
                 "--cpu-affinity" => {
+                    // The parameter's own parsing and checks, on the list as YAML.
                     let list = value()?;
-                    let yaml = serde_norway::Value::Sequence(
-                        list.split(',')
-                            .map(|c| serde_norway::from_str(c.trim()))
-                            .collect::<Result<_, _>>()
-                            .with_context(|| format!("--cpu-affinity {list}"))?,
-                    );
+                    let yaml = serde_norway::from_str(&format!("[{list}]"))
+                        .with_context(|| format!("--cpu-affinity {list}"))?;
                     o.cpus = node_runtime::affinity::cpu_affinity_of(&yaml)?;
                 }
                 "--only" => {

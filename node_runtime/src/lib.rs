@@ -45,5 +45,5 @@ pub use node::{
 };
 pub use params::{
     COMMON_PARAMS, ParameterCheck, check_known, from_parameter_value, node_parameters,
-    read_at_startup, to_parameter_value,
+    read_at_startup, read_at_startup_only, to_parameter_value,
 };

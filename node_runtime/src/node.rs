@@ -16,7 +16,7 @@ use crate::context::{SendThread, context_from_env, context_from_env_sending_on};
 use crate::error::RosError;
 use crate::local::{Bus, Publisher, RosMessageBound, Subscription};
 use crate::log::Log;
-use crate::params::{ParameterCheck, node_parameters};
+use crate::params::{ParameterCheck, node_parameters, read_at_startup_only};
 use crate::qos;
 
 /// Creates a node with parameter services and `/rosout` on, with the given parameters
@@ -339,9 +339,7 @@ impl RosNode {
         }
         let check: ParameterCheck = Box::new(move |name: &str, value: &ParameterValue| {
             if name == CPU_AFFINITY_PARAM {
-                Err(format!(
-                    "{name} is read at start-up; restart the node to change it"
-                ))
+                Err(read_at_startup_only(name))
             } else {
                 check.as_ref().map_or(Ok(()), |f| f(name, value))
             }

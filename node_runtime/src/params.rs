@@ -145,6 +145,11 @@ pub fn from_parameter_value(v: &ParameterValue) -> Value {
 /// A parameter validator: `Err(reason)` refuses a set from a ROS peer.
 pub type ParameterCheck = Box<dyn Fn(&str, &ParameterValue) -> Result<(), String> + Send + Sync>;
 
+/// Why a set of parameter `name` from a peer is refused: the node reads it at start-up.
+pub fn read_at_startup_only(name: &str) -> String {
+    format!("{name} is read at start-up; restart the node to change it")
+}
+
 /// The check of a node whose parameters are all read at start-up: a set from a peer is
 /// refused with the reason (`use_sim_time` aside).
 pub fn read_at_startup() -> ParameterCheck {
@@ -152,9 +157,7 @@ pub fn read_at_startup() -> ParameterCheck {
         if name == "use_sim_time" {
             Ok(())
         } else {
-            Err(format!(
-                "{name} is read at start-up; restart the node to change it"
-            ))
+            Err(read_at_startup_only(name))
         }
     })
 }

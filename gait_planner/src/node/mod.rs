@@ -509,9 +509,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         let (walking, shared, model) = (walking.clone(), shared.clone(), model.clone());
         move |name: &str, value: &ParameterValue| -> Result<(), String> {
             if [ROBOT_PARAM, LEG_MAP_PARAM, ODOM_TF_PARAM, STAND_PARAM].contains(&name) {
-                return Err(format!(
-                    "{name} is read at start-up; restart the node to change it"
-                ));
+                return Err(node_runtime::read_at_startup_only(name));
             }
             if name == "use_sim_time" {
                 return Ok(());

@@ -77,9 +77,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     ]);
     let check = |name: &str, _: &ParameterValue| -> Result<(), String> {
         if name == ROBOT_PARAM || name == LEG_MAP_PARAM {
-            Err(format!(
-                "{name} is read at start-up; restart the node to change it"
-            ))
+            Err(node_runtime::read_at_startup_only(name))
         } else {
             Ok(())
         }
