@@ -20,6 +20,7 @@ use nalgebra::{Isometry3, Vector3};
 use crate::error::{IkError, ModelError, ParameterFilesError};
 use crate::legs::{JointRole, Leg, LegJoint, LegRoleMap, Side, find_legs, find_legs_all};
 use crate::model::RobotModel;
+use crate::trig::atan2_each;
 
 /// Overshoot of the reach (m) taken as rounding of a straight leg, not reported.
 pub const REACH_TOLERANCE_M: f64 = 1e-12;
@@ -183,6 +184,38 @@ impl LegSolution {
 pub struct BipedModel {
     robot: RobotModel,
     legs: [Leg; 2],
+    /// Each leg's joints as the solver's last step reads them (from `legs`).
+    roles: [RoleTable; 2],
+}
+
+/// One leg's joints by [`JointRole`], laid out for the solver's last step: axis signs, limits
+/// and joint-vector slots; a role without a joint has sign 1, no limits and no slot.
+#[derive(Debug, Clone, Copy)]
+struct RoleTable {
+    sign: [f64; 6],
+    lower_rad: [f64; 6],
+    upper_rad: [f64; 6],
+    /// Index in the joint vector; `usize::MAX` (no slot) for a role without a joint.
+    dof: [usize; 6],
+}
+
+impl RoleTable {
+    fn of(leg: &Leg) -> Self {
+        let mut t = Self {
+            sign: [1.0; 6],
+            lower_rad: [f64::NEG_INFINITY; 6],
+            upper_rad: [f64::INFINITY; 6],
+            dof: [usize::MAX; 6],
+        };
+        for (role, joint) in leg.present() {
+            let i = role as usize;
+            t.sign[i] = joint.axis_sign;
+            t.lower_rad[i] = joint.limits.lower;
+            t.upper_rad[i] = joint.limits.upper;
+            t.dof[i] = joint.dof;
+        }
+        t
+    }
 }
 
 fn check_finite(side: Side, field: &'static str, value: f64) -> Result<(), IkError> {
@@ -241,7 +274,7 @@ impl BipedModel {
             urdf_rs::read_from_string(urdf).map_err(|e| vec![ModelError::Parse(e.to_string())])?;
         let robot = RobotModel::from_urdf_all(&parsed)?;
         let legs = find_legs_all(&robot, role_map)?;
-        Ok(Self { robot, legs })
+        Ok(Self::with_legs(robot, legs))
     }
 
     /// The robot of a node's `robot_description_file` and `leg_map_file` parameters: a URDF
@@ -266,7 +299,12 @@ impl BipedModel {
         role_map: Option<&LegRoleMap>,
     ) -> Result<Self, ModelError> {
         let legs = find_legs(&robot, role_map)?;
-        Ok(Self { robot, legs })
+        Ok(Self::with_legs(robot, legs))
+    }
+
+    fn with_legs(robot: RobotModel, legs: [Leg; 2]) -> Self {
+        let roles = legs.each_ref().map(RoleTable::of);
+        Self { robot, legs, roles }
     }
 
     /// The whole kinematic tree (FK, CoM, all joints).
@@ -305,13 +343,29 @@ impl BipedModel {
     /// identities), with the quadrant of the separate terms restored, so a leg costs three
     /// inverse trigonometric calls and a few square roots instead of nine transcendental
     /// calls. The answer is the same to rounding (`ik_properties.rs` checks it against the
-    /// textbook form).
+    /// textbook form). In two halves: the geometry up to the three `atan2` arguments
+    /// ([`Self::leg_geometry`]), then the angles ([`Self::leg_angles`]), so that both legs'
+    /// six `atan2` are taken together ([`Self::solve_legs`]).
     fn solve_leg_angles(
         &self,
         side: Side,
         target: &AnkleTarget,
         issues: &mut Vec<IkIssue>,
     ) -> Result<[f64; 6], IkError> {
+        let g = self.leg_geometry(side, target, issues)?;
+        let [roll, gamma, thigh] = atan2_each(g.atan_y, g.atan_x);
+        Ok(self.leg_angles(side, &g, [roll, gamma, thigh], issues))
+    }
+
+    /// One leg's geometry, up to the arguments of its three `atan2` (see
+    /// [`Self::solve_leg_angles`]); what had to be clamped is appended to `issues`.
+    #[inline(always)]
+    fn leg_geometry(
+        &self,
+        side: Side,
+        target: &AnkleTarget,
+        issues: &mut Vec<IkIssue>,
+    ) -> Result<LegGeometry, IkError> {
         let leg = self.leg(side);
         let p = target.ankle_in_hip_m;
         check_finite(side, "ankle_in_hip.x", p.x)?;
@@ -362,14 +416,12 @@ impl BipedModel {
             ((r2 - e * e).sqrt(), e)
         };
         // roll = atan2(y, -z) - asin(e / r), as one atan2 of the difference's sine and cosine
-        // (times r), on the branch of atan2(y, -z). On the roll axis itself, no roll.
-        let roll = if r2 > 0.0 {
-            unwrap_difference(
-                (py * in_plane + pz * e_r).atan2(py * e_r - pz * in_plane),
-                py.is_sign_negative(),
-            )
+        // (times r), on the branch of atan2(y, -z). On the roll axis itself, no roll
+        // (atan2(0, 1)).
+        let roll_atan = if r2 > 0.0 {
+            (py * in_plane + pz * e_r, py * e_r - pz * in_plane)
         } else {
-            0.0
+            (0.0, 1.0)
         };
         // The pitch axis sits `hip_roll_to_pitch_m` below the roll axis and
         // `hip_pitch_forward_m` ahead of the hip.
@@ -410,36 +462,75 @@ impl BipedModel {
         }
         // The triangle's sines from its area A (Heron's formula, factored so that a leg near
         // its stretch or its fold loses no digits): 4 A = 2 l1 l2 sin(gamma) = 2 l1 d sin(beta)
-        // = sqrt((d + l2 - l1)(l1 + l2 - d)(d + l1 - l2)(l1 + l2 + d)), gamma the knee's inner
-        // angle, beta the angle at the hip between the thigh and the line to the ankle. Their
-        // cosines times the same factors by the law of cosines. An acos of the cosine alone
-        // would turn a rounding of it into 1e-8 rad near the stretched leg.
-        let d = d2.sqrt();
-        let area4 = ((d + l2 - l1) * (reach - d) * (d + l1 - l2) * (reach + d))
+        // = sqrt((d + l2 - l1)(l1 + l2 - d)(d + l1 - l2)(l1 + l2 + d))
+        // = sqrt(((l1 + l2)^2 - d^2)(d^2 - (l1 - l2)^2)), gamma the knee's inner angle, beta
+        // the angle at the hip between the thigh and the line to the ankle. Each difference of
+        // squares is as exact as the product of its factors (both err by a rounding of the
+        // squares) and needs no d, so no square root waits for another here. Their cosines
+        // times the same factors by the law of cosines. An acos of the cosine alone would turn
+        // a rounding of it into 1e-8 rad near the stretched leg.
+        let area4 = ((reach * reach - d2) * (d2 - (l1 - l2) * (l1 - l2)))
             .max(0.0)
             .sqrt();
-        let gamma = area4.atan2(l1 * l1 + l2 * l2 - d2);
+        // The knee's inner angle gamma = atan2(area4, l1^2 + l2^2 - d^2).
+        let gamma_atan = (area4, l1 * l1 + l2 * l2 - d2);
         let (sin_b, cos_b) = (area4, l1 * l1 + d2 - l2 * l2);
         // Forward angle of the thigh from straight down: atan2(x, z) + beta as one atan2, on
         // the branch of atan2(x, z).
-        let thigh = unwrap_sum(
-            (x * cos_b + z * sin_b).atan2(z * cos_b - x * sin_b),
-            x.is_sign_negative(),
-        );
+        let thigh_atan = (x * cos_b + z * sin_b, z * cos_b - x * sin_b);
+        Ok(LegGeometry {
+            yaw,
+            atan_y: [roll_atan.0, gamma_atan.0, thigh_atan.0],
+            atan_x: [roll_atan.1, gamma_atan.1, thigh_atan.1],
+            roll_y_negative: py.is_sign_negative(),
+            thigh_x_negative: x.is_sign_negative(),
+        })
+    }
+
+    /// One leg's joint angles from its geometry and the `atan2` of its three argument pairs
+    /// (roll, knee's inner angle, thigh: fused sums, put back on their branch here), clamped
+    /// to the joint limits; what had to be clamped is appended to `issues`.
+    #[inline(always)]
+    fn leg_angles(
+        &self,
+        side: Side,
+        g: &LegGeometry,
+        [roll, gamma, thigh]: [f64; 3],
+        issues: &mut Vec<IkIssue>,
+    ) -> [f64; 6] {
+        let leg = self.leg(side);
+        let yaw = g.yaw;
+        let roll = unwrap_difference(roll, g.roll_y_negative);
+        let thigh = unwrap_sum(thigh, g.thigh_x_negative);
         let shin = thigh - (PI - gamma); // forward angle of the shin
 
         // To URDF joint angles: a positive rotation about +y swings what hangs below backward.
-        let sign = |r: JointRole| leg.joint(r).map_or(1.0, |j| j.axis_sign);
         let (t0, s0) = (leg.thigh_angle0_rad, leg.shin_angle0_rad);
+        // By role: hip yaw, hip roll, hip pitch, knee, ankle pitch, ankle roll.
         let mut angles = [
-            sign(JointRole::HipYaw) * yaw,
-            sign(JointRole::HipRoll) * roll,
-            sign(JointRole::HipPitch) * (t0 - thigh),
-            sign(JointRole::Knee) * ((thigh - shin) - (t0 - s0)),
-            sign(JointRole::AnklePitch) * (shin - s0),
-            -sign(JointRole::AnkleRoll) * roll,
+            yaw,
+            roll,
+            t0 - thigh,
+            (thigh - shin) - (t0 - s0),
+            shin - s0,
+            -roll,
         ];
-        for (role, joint) in leg.present() {
+        let t = &self.roles[side.index()];
+        let mut within = true;
+        for (i, a) in angles.iter_mut().enumerate() {
+            *a *= t.sign[i];
+            within &= *a >= t.lower_rad[i] && *a <= t.upper_rad[i];
+        }
+        if !within {
+            self.clamp_to_limits(side, &mut angles, issues);
+        }
+        angles
+    }
+
+    /// Clamps the angles of a leg to its joints' limits, appending each to `issues`.
+    #[cold]
+    fn clamp_to_limits(&self, side: Side, angles: &mut [f64; 6], issues: &mut Vec<IkIssue>) {
+        for (role, joint) in self.leg(side).present() {
             let a = &mut angles[role as usize];
             if !(joint.limits.lower..=joint.limits.upper).contains(a) {
                 let clamped = joint.limits.clamp(*a);
@@ -453,7 +544,6 @@ impl BipedModel {
                 *a = clamped;
             }
         }
-        Ok(angles)
     }
 
     /// Solves both legs and writes their angles into the joint vector `q` (other joints are
@@ -471,10 +561,33 @@ impl BipedModel {
                 got: q.len(),
             });
         }
-        // Solve both before writing either: a refused target leaves `q` untouched.
-        let mut issues = Vec::new();
-        let l = self.solve_leg_angles(Side::Left, left, &mut issues)?;
-        let r = self.solve_leg_angles(Side::Right, right, &mut issues)?;
+        // Solve both before writing either: a refused target leaves `q` untouched. The six
+        // atan2 together: independent, they overlap.
+        let (mut issues, mut right_issues) = (Vec::new(), Vec::new());
+        let gl = self.leg_geometry(Side::Left, left, &mut issues)?;
+        let gr = self.leg_geometry(Side::Right, right, &mut right_issues)?;
+        let [a0, a1, a2, a3, a4, a5] = atan2_each(
+            [
+                gl.atan_y[0],
+                gl.atan_y[1],
+                gl.atan_y[2],
+                gr.atan_y[0],
+                gr.atan_y[1],
+                gr.atan_y[2],
+            ],
+            [
+                gl.atan_x[0],
+                gl.atan_x[1],
+                gl.atan_x[2],
+                gr.atan_x[0],
+                gr.atan_x[1],
+                gr.atan_x[2],
+            ],
+        );
+        let l = self.leg_angles(Side::Left, &gl, [a0, a1, a2], &mut issues);
+        let r = self.leg_angles(Side::Right, &gr, [a3, a4, a5], &mut right_issues);
+        // The left leg's issues first, as when each leg is solved on its own.
+        issues.append(&mut right_issues);
         self.write_angles(Side::Left, &l, q);
         self.write_angles(Side::Right, &r, q);
         Ok(issues)
@@ -486,9 +599,9 @@ impl BipedModel {
     }
 
     fn write_angles(&self, side: Side, angles_rad: &[f64; 6], q: &mut [f64]) {
-        for (role, joint) in self.leg(side).present() {
-            if let Some(slot) = q.get_mut(joint.dof) {
-                *slot = angles_rad[role as usize];
+        for (&dof, &a) in self.roles[side.index()].dof.iter().zip(angles_rad) {
+            if let Some(slot) = q.get_mut(dof) {
+                *slot = a;
             }
         }
     }
@@ -502,6 +615,20 @@ impl BipedModel {
             leg.ankle_world(&self.robot, &poses).coords - leg.hip_in_base_m
         }))
     }
+}
+
+/// One leg solved up to its three `atan2`: roll, the knee's inner angle, the thigh.
+#[derive(Debug, Clone, Copy)]
+struct LegGeometry {
+    /// The foot yaw used (rad): 0 on a leg without a yaw joint.
+    yaw: f64,
+    /// The `atan2` arguments: roll, knee's inner angle, thigh.
+    atan_y: [f64; 3],
+    atan_x: [f64; 3],
+    /// Branch of the fused roll difference: the sign of atan2(y, -z).
+    roll_y_negative: bool,
+    /// Branch of the fused thigh sum: the sign of atan2(x, z).
+    thigh_x_negative: bool,
 }
 
 /// An angle difference atan2(y, x) - psi with psi in [-pi/2, pi/2], computed as one atan2 in
