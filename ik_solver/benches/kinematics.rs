@@ -82,5 +82,23 @@ fn fk(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, ik, fk);
+/// The six inverse tangents of a both-leg solve: the C library's one by one against the
+/// branch-free batch the IK uses.
+fn trig(c: &mut Criterion) {
+    let y: [f64; 6] = [0.31, -0.02, 0.5, 1e-3, 0.8, -0.27];
+    let x: [f64; 6] = [0.9, 0.04, -0.12, 0.2, 0.79, -0.3];
+    let mut g = c.benchmark_group("trig");
+    g.bench_function("atan2_x6/libm", |bench| {
+        bench.iter(|| {
+            let (y, x) = (black_box(y), black_box(x));
+            std::array::from_fn::<f64, 6, _>(|i| y[i].atan2(x[i]))
+        })
+    });
+    g.bench_function("atan2_x6/batch", |bench| {
+        bench.iter(|| ik_solver::trig::atan2_each(black_box(y), black_box(x)))
+    });
+    g.finish();
+}
+
+criterion_group!(benches, ik, fk, trig);
 criterion_main!(benches);

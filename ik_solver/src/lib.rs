@@ -25,7 +25,7 @@ mod model;
 pub mod odometry;
 mod statics;
 pub mod support;
-mod trig;
+pub mod trig;
 
 /// The ROS 2 node (feature `node`): [`node::run`] alone in its process or composed.
 #[cfg(feature = "node")]
