@@ -16,11 +16,12 @@ use std::f64::consts::PI;
 use std::fmt;
 
 use nalgebra::{Isometry3, Vector3};
+use wide::f64x2;
 
 use crate::error::{IkError, ModelError, ParameterFilesError};
 use crate::legs::{JointRole, Leg, LegJoint, LegRoleMap, Side, find_legs, find_legs_all};
 use crate::model::RobotModel;
-use crate::trig::atan2_each;
+use crate::trig::atan2_x2;
 
 /// Overshoot of the reach (m) taken as rounding of a straight leg, not reported.
 pub const REACH_TOLERANCE_M: f64 = 1e-12;
@@ -326,8 +327,10 @@ impl BipedModel {
 
     /// Solves one leg.
     pub fn solve_leg(&self, side: Side, target: &AnkleTarget) -> Result<LegSolution, IkError> {
-        let mut issues = Vec::new();
-        let angles_rad = self.solve_leg_angles(side, target, &mut issues)?;
+        // The leg in both SIMD lanes; the second lane's copy of the answer is not used.
+        let (mut issues, mut unused) = (Vec::new(), Vec::new());
+        let [angles_rad, _] =
+            self.solve_pair([side, side], [target, target], [&mut issues, &mut unused])?;
         Ok(LegSolution {
             side,
             angles_rad,
@@ -335,37 +338,173 @@ impl BipedModel {
         })
     }
 
-    /// One leg's angles by [`JointRole`]; what had to be clamped is appended to `issues`
-    /// (nothing is allocated when nothing is clamped).
+    /// Solves both legs and writes their angles into the joint vector `q` (other joints are
+    /// left as they are). Returns what was clamped, for both legs (empty, unallocated, when
+    /// both targets were solved exactly).
+    pub fn solve_legs(
+        &self,
+        left: &AnkleTarget,
+        right: &AnkleTarget,
+        q: &mut [f64],
+    ) -> Result<Vec<IkIssue>, IkError> {
+        if q.len() != self.robot.dof_count() {
+            return Err(IkError::JointCount {
+                expected: self.robot.dof_count(),
+                got: q.len(),
+            });
+        }
+        // Solve both before writing either: a refused target leaves `q` untouched.
+        let (mut issues, mut right_issues) = (Vec::new(), Vec::new());
+        let [l, r] = self.solve_pair(
+            [Side::Left, Side::Right],
+            [left, right],
+            [&mut issues, &mut right_issues],
+        )?;
+        // The left leg's issues first, as when each leg is solved on its own.
+        issues.append(&mut right_issues);
+        self.write_angles(Side::Left, &l, q);
+        self.write_angles(Side::Right, &r, q);
+        Ok(issues)
+    }
+
+    /// Two legs' angles by [`JointRole`] (or one leg's twice), side by side in SIMD lanes;
+    /// what had to be clamped is appended to each lane's `issues` (nothing is allocated when
+    /// nothing is clamped). A non-finite target is refused, the first lane's first.
     ///
     /// The paper's angles are sums and differences of `atan2`, `asin` and `acos` terms; each
     /// sum is taken here as one `atan2` of the summed sine and cosine (the angle-sum
     /// identities), with the quadrant of the separate terms restored, so a leg costs three
-    /// inverse trigonometric calls and a few square roots instead of nine transcendental
-    /// calls. The answer is the same to rounding (`ik_properties.rs` checks it against the
-    /// textbook form). In two halves: the geometry up to the three `atan2` arguments
-    /// ([`Self::leg_geometry`]), then the angles ([`Self::leg_angles`]), so that both legs'
-    /// six `atan2` are taken together ([`Self::solve_legs`]).
-    fn solve_leg_angles(
+    /// inverse tangents and two square roots instead of nine transcendental calls. The answer
+    /// is the same to rounding (`ik_properties.rs` checks it against the textbook form). The
+    /// two legs go through the geometry and the inverse tangents together, two lanes of each
+    /// operation ([`crate::trig`]); what is rare (a target out of reach, a clamped joint) is
+    /// done lane by lane off that path.
+    #[inline(always)]
+    fn solve_pair(
         &self,
-        side: Side,
-        target: &AnkleTarget,
-        issues: &mut Vec<IkIssue>,
-    ) -> Result<[f64; 6], IkError> {
-        let g = self.leg_geometry(side, target, issues)?;
-        let [roll, gamma, thigh] = atan2_each(g.atan_y, g.atan_x);
-        Ok(self.leg_angles(side, &g, [roll, gamma, thigh], issues))
+        sides: [Side; 2],
+        targets: [&AnkleTarget; 2],
+        issues: [&mut Vec<IkIssue>; 2],
+    ) -> Result<[[f64; 6]; 2], IkError> {
+        let [issues0, issues1] = issues;
+        let t0 = self.target_in_hip_frame(sides[0], targets[0], issues0)?;
+        let t1 = self.target_in_hip_frame(sides[1], targets[1], issues1)?;
+        let issues = [issues0, issues1];
+        let legs = sides.map(|s| self.leg(s));
+        let lanes = |f: fn(&Leg) -> f64| f64x2::new([f(legs[0]), f(legs[1])]);
+        let (px, py, pz) = (
+            f64x2::new([t0.p[0], t1.p[0]]),
+            f64x2::new([t0.p[1], t1.p[1]]),
+            f64x2::new([t0.p[2], t1.p[2]]),
+        );
+        let zero = f64x2::ZERO;
+
+        // Hip roll turns the leg's plane, which keeps the distance e from the roll axis,
+        // until it contains the ankle: the tangent from the ankle to the circle of radius e
+        // (ALGORITHM.md, "Leg layouts of real servo humanoids"). With e = 0 it is the
+        // paper's atan2(y, -z).
+        let e = lanes(|l| l.ankle_lateral_m);
+        let r2 = py * py + pz * pz;
+        // The reach within the leg's plane, down from the roll axis: the tangent's length
+        // sqrt(r^2 - e^2) (with e = 0, r itself); and sin asin(e / r) = e / r, times r.
+        // Inside the circle: asin(+-1), the leg laid sideways (a positive factor of r left
+        // out).
+        let inside = r2.simd_lt(e * e);
+        if inside.any() {
+            let (r2, e) = (r2.to_array(), e.to_array());
+            for i in 0..2 {
+                if r2[i] < e[i] * e[i] {
+                    issues[i].push(IkIssue::InsideLateralOffset {
+                        side: sides[i],
+                        distance_m: r2[i].sqrt(),
+                        offset_m: e[i],
+                    });
+                }
+            }
+        }
+        let in_plane = inside.select(zero, (r2 - e * e).sqrt());
+        let e_r = inside.select(f64x2::ONE.copysign(e), e);
+        // roll = atan2(y, -z) - asin(e / r), as one atan2 of the difference's sine and cosine
+        // (times r), on the branch of atan2(y, -z). On the roll axis itself, no roll
+        // (atan2(0, 1)).
+        let off_axis = r2.simd_gt(zero);
+        let roll_y = off_axis.select(py * in_plane + pz * e_r, zero);
+        let roll_x = off_axis.select(py * e_r - pz * in_plane, f64x2::ONE);
+        // The pitch axis sits `hip_roll_to_pitch_m` below the roll axis and
+        // `hip_pitch_forward_m` ahead of the hip.
+        let mut x = px - lanes(|l| l.hip_pitch_forward_m);
+        let mut z = in_plane - lanes(|l| l.hip_roll_to_pitch_m);
+
+        // The triangle hip pitch - knee - ankle pitch; its reach compared in squared lengths.
+        let (l1, l2) = (lanes(|l| l.thigh_m), lanes(|l| l.shin_m));
+        let (reach, fold) = (l1 + l2, l1 - l2);
+        let mut d2 = x * x + z * z;
+        let min = fold.abs().max(f64x2::splat(1e-6) * reach);
+        if (d2.simd_gt(reach * reach) | d2.simd_lt(min * min)).any() {
+            let (mut xs, mut zs, mut d2s) = (x.to_array(), z.to_array(), d2.to_array());
+            for i in 0..2 {
+                (xs[i], zs[i], d2s[i]) = bring_within_reach(
+                    legs[i],
+                    [t0.far, t1.far][i],
+                    xs[i],
+                    zs[i],
+                    d2s[i],
+                    issues[i],
+                );
+            }
+            (x, z, d2) = (f64x2::new(xs), f64x2::new(zs), f64x2::new(d2s));
+        }
+        // The triangle's sines from its area A (Heron's formula, factored so that a leg near
+        // its stretch or its fold loses no digits): 4 A = 2 l1 l2 sin(gamma) = 2 l1 d sin(beta)
+        // = sqrt((d + l2 - l1)(l1 + l2 - d)(d + l1 - l2)(l1 + l2 + d))
+        // = sqrt(((l1 + l2)^2 - d^2)(d^2 - (l1 - l2)^2)), gamma the knee's inner angle, beta
+        // the angle at the hip between the thigh and the line to the ankle. Each difference of
+        // squares is as exact as the product of its factors (both err by a rounding of the
+        // squares) and needs no d, so no square root waits for another here. Their cosines
+        // times the same factors by the law of cosines. An acos of the cosine alone would turn
+        // a rounding of it into 1e-8 rad near the stretched leg.
+        let area4 = ((reach * reach - d2) * (d2 - fold * fold)).max(zero).sqrt();
+        let (sin_b, cos_b) = (area4, l1 * l1 + d2 - l2 * l2);
+        let roll = atan2_x2(roll_y, roll_x).to_array();
+        // The knee's inner angle.
+        let gamma = atan2_x2(area4, l1 * l1 + l2 * l2 - d2).to_array();
+        // Forward angle of the thigh from straight down: atan2(x, z) + beta as one atan2, on
+        // the branch of atan2(x, z).
+        let thigh = atan2_x2(x * cos_b + z * sin_b, z * cos_b - x * sin_b).to_array();
+        let (py_negative, x_negative) = (
+            py.is_sign_negative().to_bitmask(),
+            x.is_sign_negative().to_bitmask(),
+        );
+        let [issues0, issues1] = issues;
+        Ok([
+            self.leg_angles(
+                sides[0],
+                t0.yaw,
+                unwrap_difference(roll[0], py_negative & 1 != 0),
+                gamma[0],
+                unwrap_sum(thigh[0], x_negative & 1 != 0),
+                issues0,
+            ),
+            self.leg_angles(
+                sides[1],
+                t1.yaw,
+                unwrap_difference(roll[1], py_negative & 2 != 0),
+                gamma[1],
+                unwrap_sum(thigh[1], x_negative & 2 != 0),
+                issues1,
+            ),
+        ])
     }
 
-    /// One leg's geometry, up to the arguments of its three `atan2` (see
-    /// [`Self::solve_leg_angles`]); what had to be clamped is appended to `issues`.
+    /// A target checked and turned into the leg's hip frame: the ankle point (brought in from
+    /// beyond [`FAR_M`] by the factor `far`) and the foot yaw used.
     #[inline(always)]
-    fn leg_geometry(
+    fn target_in_hip_frame(
         &self,
         side: Side,
         target: &AnkleTarget,
         issues: &mut Vec<IkIssue>,
-    ) -> Result<LegGeometry, IkError> {
+    ) -> Result<HipFrameTarget, IkError> {
         let leg = self.leg(side);
         let p = target.ankle_in_hip_m;
         check_finite(side, "ankle_in_hip.x", p.x)?;
@@ -394,114 +533,26 @@ impl BipedModel {
             let (sin, cos) = yaw.sin_cos();
             (cos * p.x + sin * p.y, cos * p.y - sin * p.x)
         };
-        let pz = p.z;
-
-        // Hip roll turns the leg's plane, which keeps the distance e from the roll axis,
-        // until it contains the ankle: the tangent from the ankle to the circle of radius e
-        // (ALGORITHM.md, "Leg layouts of real servo humanoids"). With e = 0 it is the
-        // paper's atan2(y, -z).
-        let e = leg.ankle_lateral_m;
-        let r2 = py * py + pz * pz;
-        // The reach within the leg's plane, down from the roll axis: the tangent's length
-        // sqrt(r^2 - e^2) (with e = 0, r itself); and sin asin(e / r) = e / r, times r.
-        let (in_plane, e_r) = if r2 < e * e {
-            issues.push(IkIssue::InsideLateralOffset {
-                side,
-                distance_m: r2.sqrt(),
-                offset_m: e,
-            });
-            // asin(+-1): the leg laid sideways (a positive factor of r left out).
-            (0.0, e.signum())
-        } else {
-            ((r2 - e * e).sqrt(), e)
-        };
-        // roll = atan2(y, -z) - asin(e / r), as one atan2 of the difference's sine and cosine
-        // (times r), on the branch of atan2(y, -z). On the roll axis itself, no roll
-        // (atan2(0, 1)).
-        let roll_atan = if r2 > 0.0 {
-            (py * in_plane + pz * e_r, py * e_r - pz * in_plane)
-        } else {
-            (0.0, 1.0)
-        };
-        // The pitch axis sits `hip_roll_to_pitch_m` below the roll axis and
-        // `hip_pitch_forward_m` ahead of the hip.
-        let mut x = px - leg.hip_pitch_forward_m;
-        let mut z = in_plane - leg.hip_roll_to_pitch_m;
-
-        // The triangle hip pitch - knee - ankle pitch; its reach compared in squared lengths.
-        let (l1, l2) = (leg.thigh_m, leg.shin_m);
-        let reach = l1 + l2;
-        let min = (l1 - l2).abs().max(1e-6 * reach);
-        let mut d2 = x * x + z * z;
-        if d2 > reach * reach {
-            let d = d2.sqrt();
-            // Straight legs land here by rounding; only a real overshoot is an issue.
-            if d > reach + REACH_TOLERANCE_M {
-                issues.push(IkIssue::OutOfReach {
-                    side,
-                    // As asked, for a target brought in from beyond `FAR_M`.
-                    distance_m: d * far,
-                    reach_m: reach,
-                });
-            }
-            (x, z) = (x * reach / d, z * reach / d);
-            d2 = reach * reach;
-        } else if d2 < min * min {
-            let d = d2.sqrt();
-            issues.push(IkIssue::TooClose {
-                side,
-                distance_m: d,
-                min_m: min,
-            });
-            (x, z) = if d > 0.0 {
-                (x * min / d, z * min / d)
-            } else {
-                (0.0, min)
-            };
-            d2 = min * min;
-        }
-        // The triangle's sines from its area A (Heron's formula, factored so that a leg near
-        // its stretch or its fold loses no digits): 4 A = 2 l1 l2 sin(gamma) = 2 l1 d sin(beta)
-        // = sqrt((d + l2 - l1)(l1 + l2 - d)(d + l1 - l2)(l1 + l2 + d))
-        // = sqrt(((l1 + l2)^2 - d^2)(d^2 - (l1 - l2)^2)), gamma the knee's inner angle, beta
-        // the angle at the hip between the thigh and the line to the ankle. Each difference of
-        // squares is as exact as the product of its factors (both err by a rounding of the
-        // squares) and needs no d, so no square root waits for another here. Their cosines
-        // times the same factors by the law of cosines. An acos of the cosine alone would turn
-        // a rounding of it into 1e-8 rad near the stretched leg.
-        let area4 = ((reach * reach - d2) * (d2 - (l1 - l2) * (l1 - l2)))
-            .max(0.0)
-            .sqrt();
-        // The knee's inner angle gamma = atan2(area4, l1^2 + l2^2 - d^2).
-        let gamma_atan = (area4, l1 * l1 + l2 * l2 - d2);
-        let (sin_b, cos_b) = (area4, l1 * l1 + d2 - l2 * l2);
-        // Forward angle of the thigh from straight down: atan2(x, z) + beta as one atan2, on
-        // the branch of atan2(x, z).
-        let thigh_atan = (x * cos_b + z * sin_b, z * cos_b - x * sin_b);
-        Ok(LegGeometry {
+        Ok(HipFrameTarget {
+            p: [px, py, p.z],
             yaw,
-            atan_y: [roll_atan.0, gamma_atan.0, thigh_atan.0],
-            atan_x: [roll_atan.1, gamma_atan.1, thigh_atan.1],
-            roll_y_negative: py.is_sign_negative(),
-            thigh_x_negative: x.is_sign_negative(),
+            far,
         })
     }
 
-    /// One leg's joint angles from its geometry and the `atan2` of its three argument pairs
-    /// (roll, knee's inner angle, thigh: fused sums, put back on their branch here), clamped
-    /// to the joint limits; what had to be clamped is appended to `issues`.
+    /// One leg's joint angles from its yaw, roll, knee's inner angle gamma and thigh angle,
+    /// clamped to the joint limits; what had to be clamped is appended to `issues`.
     #[inline(always)]
     fn leg_angles(
         &self,
         side: Side,
-        g: &LegGeometry,
-        [roll, gamma, thigh]: [f64; 3],
+        yaw: f64,
+        roll: f64,
+        gamma: f64,
+        thigh: f64,
         issues: &mut Vec<IkIssue>,
     ) -> [f64; 6] {
         let leg = self.leg(side);
-        let yaw = g.yaw;
-        let roll = unwrap_difference(roll, g.roll_y_negative);
-        let thigh = unwrap_sum(thigh, g.thigh_x_negative);
         let shin = thigh - (PI - gamma); // forward angle of the shin
 
         // To URDF joint angles: a positive rotation about +y swings what hangs below backward.
@@ -546,53 +597,6 @@ impl BipedModel {
         }
     }
 
-    /// Solves both legs and writes their angles into the joint vector `q` (other joints are
-    /// left as they are). Returns what was clamped, for both legs (empty, unallocated, when
-    /// both targets were solved exactly).
-    pub fn solve_legs(
-        &self,
-        left: &AnkleTarget,
-        right: &AnkleTarget,
-        q: &mut [f64],
-    ) -> Result<Vec<IkIssue>, IkError> {
-        if q.len() != self.robot.dof_count() {
-            return Err(IkError::JointCount {
-                expected: self.robot.dof_count(),
-                got: q.len(),
-            });
-        }
-        // Solve both before writing either: a refused target leaves `q` untouched. The six
-        // atan2 together: independent, they overlap.
-        let (mut issues, mut right_issues) = (Vec::new(), Vec::new());
-        let gl = self.leg_geometry(Side::Left, left, &mut issues)?;
-        let gr = self.leg_geometry(Side::Right, right, &mut right_issues)?;
-        let [a0, a1, a2, a3, a4, a5] = atan2_each(
-            [
-                gl.atan_y[0],
-                gl.atan_y[1],
-                gl.atan_y[2],
-                gr.atan_y[0],
-                gr.atan_y[1],
-                gr.atan_y[2],
-            ],
-            [
-                gl.atan_x[0],
-                gl.atan_x[1],
-                gl.atan_x[2],
-                gr.atan_x[0],
-                gr.atan_x[1],
-                gr.atan_x[2],
-            ],
-        );
-        let l = self.leg_angles(Side::Left, &gl, [a0, a1, a2], &mut issues);
-        let r = self.leg_angles(Side::Right, &gr, [a3, a4, a5], &mut right_issues);
-        // The left leg's issues first, as when each leg is solved on its own.
-        issues.append(&mut right_issues);
-        self.write_angles(Side::Left, &l, q);
-        self.write_angles(Side::Right, &r, q);
-        Ok(issues)
-    }
-
     /// Writes one leg's angles into a joint vector.
     pub fn write_leg(&self, sol: &LegSolution, q: &mut [f64]) {
         self.write_angles(sol.side, &sol.angles_rad, q);
@@ -617,18 +621,62 @@ impl BipedModel {
     }
 }
 
-/// One leg solved up to its three `atan2`: roll, the knee's inner angle, the thigh.
+/// A target in the leg's hip frame (see [`BipedModel::target_in_hip_frame`]).
 #[derive(Debug, Clone, Copy)]
-struct LegGeometry {
+struct HipFrameTarget {
+    /// The ankle point in the yawed hip frame (m).
+    p: [f64; 3],
     /// The foot yaw used (rad): 0 on a leg without a yaw joint.
     yaw: f64,
-    /// The `atan2` arguments: roll, knee's inner angle, thigh.
-    atan_y: [f64; 3],
-    atan_x: [f64; 3],
-    /// Branch of the fused roll difference: the sign of atan2(y, -z).
-    roll_y_negative: bool,
-    /// Branch of the fused thigh sum: the sign of atan2(x, z).
-    thigh_x_negative: bool,
+    /// The factor the target was brought in by from beyond [`FAR_M`] (1 when it was not).
+    far: f64,
+}
+
+/// The ankle at (x, z) from the hip pitch axis, d2 = x^2 + z^2, brought onto the reach of a
+/// leg when beyond it or out to the folded leg's shortest distance when inside that, with the
+/// issue appended; otherwise as it is. `far`: the factor the target was brought in by, for the
+/// distance reported.
+#[cold]
+fn bring_within_reach(
+    leg: &Leg,
+    far: f64,
+    x: f64,
+    z: f64,
+    d2: f64,
+    issues: &mut Vec<IkIssue>,
+) -> (f64, f64, f64) {
+    let (l1, l2) = (leg.thigh_m, leg.shin_m);
+    let reach = l1 + l2;
+    let min = (l1 - l2).abs().max(1e-6 * reach);
+    let side = leg.side;
+    if d2 > reach * reach {
+        let d = d2.sqrt();
+        // Straight legs land here by rounding; only a real overshoot is an issue.
+        if d > reach + REACH_TOLERANCE_M {
+            issues.push(IkIssue::OutOfReach {
+                side,
+                // As asked, for a target brought in from beyond `FAR_M`.
+                distance_m: d * far,
+                reach_m: reach,
+            });
+        }
+        (x * reach / d, z * reach / d, reach * reach)
+    } else if d2 < min * min {
+        let d = d2.sqrt();
+        issues.push(IkIssue::TooClose {
+            side,
+            distance_m: d,
+            min_m: min,
+        });
+        let (x, z) = if d > 0.0 {
+            (x * min / d, z * min / d)
+        } else {
+            (0.0, min)
+        };
+        (x, z, min * min)
+    } else {
+        (x, z, d2)
+    }
 }
 
 /// An angle difference atan2(y, x) - psi with psi in [-pi/2, pi/2], computed as one atan2 in

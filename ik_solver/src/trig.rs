@@ -78,7 +78,7 @@ pub fn atan2_each<const N: usize>(y: [f64; N], x: [f64; N]) -> [f64; N] {
 
 /// atan2 of two pairs of arguments, lane by lane, without a branch.
 #[inline(always)]
-fn atan2_x2(y: f64x2, x: f64x2) -> f64x2 {
+pub(crate) fn atan2_x2(y: f64x2, x: f64x2) -> f64x2 {
     let splat = f64x2::splat;
     let (ax, ay) = (x.abs(), y.abs());
     // Past the diagonal the angle is pi/2 minus the one of the swapped pair.

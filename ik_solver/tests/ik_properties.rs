@@ -168,6 +168,55 @@ proptest! {
         check_textbook(&b, side, AnkleTarget { ankle_in_hip_m: Vector3::new(x, y, z), foot_yaw_rad: yaw })?;
     }
 
+    /// Both legs solved together (side by side in SIMD lanes) give each leg exactly what it
+    /// gets alone (which the tests above hold to the textbook), clamps and issues included,
+    /// whatever the other leg is asked: one leg out of reach, folded, beyond a limit or inside
+    /// its offset changes nothing of the other's. A refused target leaves `q` as it was.
+    #[test]
+    fn both_legs_together_are_each_leg_alone(
+        l in (-0.5..0.5f64, -0.5..0.5f64, -0.5..0.5f64, -2.0..2.0f64),
+        r in (-0.5..0.5f64, -0.5..0.5f64, -0.5..0.5f64, -2.0..2.0f64),
+        robot in 0..3u8,
+        refuse in 0..3u8,
+    ) {
+        let b = match robot { 0 => default_biped(), 1 => biped6(), _ => op3_layout() };
+        let target = |(x, y, z, yaw): (f64, f64, f64, f64)| AnkleTarget {
+            ankle_in_hip_m: Vector3::new(x, y, z),
+            foot_yaw_rad: yaw,
+        };
+        let (mut left, mut right) = (target(l), target(r));
+        // One case in three: one of the two targets is refused.
+        match refuse {
+            1 => left.ankle_in_hip_m.y = f64::NAN,
+            2 => right.foot_yaw_rad = f64::INFINITY,
+            _ => {}
+        }
+        let before: Vec<f64> = (0..b.robot().dof_count()).map(|i| 0.1 * i as f64).collect();
+        let mut q = before.clone();
+        let both = b.solve_legs(&left, &right, &mut q);
+        let alone = [(Side::Left, left), (Side::Right, right)].map(|(s, t)| b.solve_leg(s, &t));
+        match (both, alone) {
+            (Ok(issues), [Ok(l), Ok(r)]) => {
+                let mut want = before.clone();
+                b.write_leg(&l, &mut want);
+                b.write_leg(&r, &mut want);
+                prop_assert_eq!(
+                    q.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    want.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                    "joint vectors differ for {:?} / {:?}", left, right
+                );
+                prop_assert_eq!(issues, [l.issues, r.issues].concat());
+            }
+            (Err(e), [l, r]) => {
+                // The error of the first refused leg, left before right; `q` untouched.
+                let first = l.err().or(r.err());
+                prop_assert_eq!(Some(e.to_string()), first.map(|e| e.to_string()));
+                prop_assert_eq!(&q, &before);
+            }
+            (both, alone) => prop_assert!(false, "together {both:?}, alone {alone:?}"),
+        }
+    }
+
     /// The same closer to the hip roll axis than the OP3 layout's 6 mm sideways offset,
     /// where the leg is laid sideways (asin(+-1)).
     #[test]
