@@ -5,8 +5,9 @@
 //! (where the hip yaw and roll axes cross), in base-frame axes, plus a foot yaw for 6-joint
 //! legs. The sole is kept level and, on 6-joint legs, turned by the yaw. Sideways and forward
 //! offsets between the axes (the leg layouts of servo humanoids) stay in closed form
-//! (ALGORITHM.md, "Leg layouts of real servo humanoids"). No iteration: a handful of
-//! `atan2`/`asin`/`acos`.
+//! (ALGORITHM.md, "Leg layouts of real servo humanoids"). No iteration: per leg, two square
+//! roots and three `atan2` (the paper's `atan2`/`asin`/`acos` terms summed by the angle-sum
+//! identities), both legs side by side in SIMD lanes.
 //!
 //! Unreachable targets are pulled onto the reachable boundary and joint-limit violations are
 //! clamped; both are reported as [`IkIssue`]s naming the leg, the joint and the amount.
