@@ -476,25 +476,18 @@ impl BipedModel {
             py.is_sign_negative().to_bitmask(),
             x.is_sign_negative().to_bitmask(),
         );
-        let [issues0, issues1] = issues;
-        Ok([
-            self.leg_angles(
-                sides[0],
-                t0.yaw,
-                unwrap_difference(roll[0], py_negative & 1 != 0),
-                gamma[0],
-                unwrap_sum(thigh[0], x_negative & 1 != 0),
-                issues0,
-            ),
-            self.leg_angles(
-                sides[1],
-                t1.yaw,
-                unwrap_difference(roll[1], py_negative & 2 != 0),
-                gamma[1],
-                unwrap_sum(thigh[1], x_negative & 2 != 0),
-                issues1,
-            ),
-        ])
+        let (yaw, mut angles) = ([t0.yaw, t1.yaw], [[0.0; 6]; 2]);
+        for (i, issues) in issues.into_iter().enumerate() {
+            angles[i] = self.leg_angles(
+                sides[i],
+                yaw[i],
+                unwrap_difference(roll[i], py_negative >> i & 1 != 0),
+                gamma[i],
+                unwrap_sum(thigh[i], x_negative >> i & 1 != 0),
+                issues,
+            );
+        }
+        Ok(angles)
     }
 
     /// A target checked and turned into the leg's hip frame: the ankle point (brought in from
