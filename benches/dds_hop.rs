@@ -11,6 +11,7 @@
 //! ```sh
 //! cargo bench --bench dds_hop              # prints a Markdown table
 //! cargo bench --bench dds_hop -- --n 3000  # samples per rate (default 2000)
+//! cargo bench --bench dds_hop -- --cpu-dma-latency-us 0  # idle CPUs poll meanwhile
 //! ```
 //!
 //! Nothing leaves the machine: the process re-executes itself in a private network namespace
@@ -54,7 +55,8 @@ fn main() -> ExitCode {
 }
 
 fn run() -> anyhow::Result<()> {
-    let n = common::count_arg(2000)?;
+    let args = common::count_args(2000)?;
+    let n = args.n;
     if !common::in_netns() {
         return common::reexec_in_netns(&DOMAIN_ID.to_string());
     }

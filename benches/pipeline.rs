@@ -28,7 +28,10 @@
 //! `--wait-idle` (before each run, wait up to 2 min until the machine is idle, and do a run
 //! that other processes disturbed anyway, over 20 % of a core on average or half a core in
 //! some 0.5 s, again, up to three times: on a shared machine a compile next door shows in
-//! p99 and max; the table has a column for the CPU other processes used either way).
+//! p99 and max; the table has a column for the CPU other processes used either way),
+//! `--cpu-dma-latency-us US` (hold a CPU latency request during the runs, as a node's
+//! `cpu_dma_latency_us` parameter does: 0 keeps idle CPUs polling instead of halting),
+//! `--dump DIR` (each run's latencies, one CSV per relay and rate, in the order sent).
 //! A benchmark, not a test: it is not part of `cargo test` or `scripts/test`.
 
 mod common;
@@ -100,6 +103,10 @@ struct Opts {
     wait_idle: bool,
     /// `--cpu-affinity`: the CPUs the bench and the relay are bound to.
     cpus: Option<Vec<usize>>,
+    /// `--cpu-dma-latency-us`: a CPU latency request held during the runs.
+    latency_us: Option<u32>,
+    /// `--dump`: where each run's latencies go, one CSV per relay and rate.
+    dump: Option<PathBuf>,
 }
 
 impl Opts {
@@ -111,6 +118,8 @@ impl Opts {
             write: false,
             wait_idle: false,
             cpus: None,
+            latency_us: None,
+            dump: None,
         };
         let mut it = args.into_iter();
         while let Some(a) = it.next() {
@@ -129,6 +138,13 @@ impl Opts {
                         .with_context(|| format!("--cpu-affinity {list}"))?;
                     o.cpus = node_runtime::affinity::cpu_affinity_of(&yaml)?;
                 }
+                "--cpu-dma-latency-us" => {
+                    let us = value()?;
+                    let yaml = serde_norway::from_str(&us)
+                        .with_context(|| format!("--cpu-dma-latency-us {us}"))?;
+                    o.latency_us = Some(node_runtime::cpu_latency::cpu_dma_latency_of(&yaml)?);
+                }
+                "--dump" => o.dump = Some(PathBuf::from(value()?)),
                 "--only" => {
                     o.relays = match value()?.as_str() {
                         "ik_solver" => vec![Relay::IkSolver],
@@ -137,7 +153,7 @@ impl Opts {
                     }
                 }
                 other => bail!(
-                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...])"
+                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...], --cpu-dma-latency-us US, --dump DIR)"
                 ),
             }
         }
@@ -157,6 +173,14 @@ fn run() -> anyhow::Result<()> {
     // Before DDS starts a thread: they all inherit it, as does the rclpy relay's process.
     if let Some(cpus) = &opts.cpus {
         node_runtime::affinity::bind_this_thread(cpus)?;
+    }
+    // The whole machine's, so the rclpy relay's runs have it too; held until the bench ends.
+    let _latency = opts
+        .latency_us
+        .map(node_runtime::CpuLatencyRequest::hold)
+        .transpose()?;
+    if let Some(dir) = &opts.dump {
+        std::fs::create_dir_all(dir).with_context(|| format!("--dump {}", dir.display()))?;
     }
 
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
@@ -192,6 +216,11 @@ fn run() -> anyhow::Result<()> {
                     // would set.
                     cmd.args(["-p", &format!("cpu_affinity:={cpus:?}")]);
                 }
+                if let Some(us) = opts.latency_us {
+                    // The bench holds it already (the request is the machine's): the node
+                    // holds it as a user would set it.
+                    cmd.args(["-p", &format!("cpu_dma_latency_us:={us}")]);
+                }
                 spawn_relay(&mut cmd, relay)?
             }
             Relay::Rclpy => {
@@ -220,7 +249,7 @@ fn run() -> anyhow::Result<()> {
             &targets,
             leg_joints.len(),
             clock,
-            opts.wait_idle,
+            &opts,
         );
         let stdout = child.stop();
         match outcome {
@@ -429,6 +458,8 @@ struct RunResult {
     duplicates: usize,
     wrong_size: usize,
     median_us: f64,
+    /// Messages that took over twice the median.
+    over_twice_median: usize,
     p99_us: f64,
     max_us: f64,
     achieved_hz: f64,
@@ -501,8 +532,9 @@ fn session(
     targets: &[AnkleTargets],
     joints: usize,
     clock: StampClock,
-    wait: bool,
+    opts: &Opts,
 ) -> anyhow::Result<Vec<RunResult>> {
+    let (wait, dump) = (opts.wait_idle, opts.dump.as_deref());
     let dds = |what: &str| {
         let what = what.to_owned();
         move |e: &dyn std::fmt::Debug| anyhow!("{what}: {e:?}")
@@ -594,14 +626,15 @@ fn session(
                     wait_idle(Duration::from_secs(120));
                 }
                 let r = measure(
-                    relay, rate_hz, n, &publisher, targets, &mut k, clock, &rx, child, joints,
+                    relay, rate_hz, n, &publisher, targets, &mut k, clock, &rx, child, joints, dump,
                 )?;
                 eprintln!(
-                    "[{}] {} Hz: median {:.3} ms, p99 {:.3} ms, max {:.3} ms, lost {}/{}; other processes {:.0} % of a core, peak {:.0} %",
+                    "[{}] {} Hz: median {:.3} ms, p99 {:.3} ms ({} over twice the median), max {:.3} ms, lost {}/{}; other processes {:.0} % of a core, peak {:.0} %",
                     relay.name(),
                     rate_hz,
                     r.median_us / 1e3,
                     r.p99_us / 1e3,
+                    r.over_twice_median,
                     r.max_us / 1e3,
                     r.lost,
                     r.sent,
@@ -712,6 +745,7 @@ fn measure(
     rx: &mpsc::Receiver<Arrival>,
     child: &mut RelayProcess,
     joints: usize,
+    dump: Option<&Path>,
 ) -> anyhow::Result<RunResult> {
     // Warm-up at the rate (half a second, at least 100 messages), not counted.
     let warmup = ((rate_hz * 0.5) as usize).max(100);
@@ -769,12 +803,27 @@ fn measure(
     if child.exited() {
         bail!("the relay exited during the {rate_hz} Hz run");
     }
+    if let Some(dir) = dump {
+        // In the order sent; a lost message's latency is empty.
+        let mut csv = String::from("message,stamp_ns,latency_us\n");
+        for (i, stamp) in stamps.iter().enumerate() {
+            let _ = write!(csv, "{i},{stamp},");
+            if let Some(a) = arrived.get(stamp) {
+                let _ = write!(csv, "{:.3}", (a.arrived_ns - a.stamp_ns) as f64 / 1e3);
+            }
+            csv.push('\n');
+        }
+        let path = dir.join(format!("{}-{rate_hz}hz.csv", relay.name()));
+        std::fs::write(&path, csv).with_context(|| format!("writing {}", path.display()))?;
+    }
     let mut lat: Vec<f64> = arrived
         .values()
         .map(|a| (a.arrived_ns - a.stamp_ns) as f64 / 1e3)
         .collect();
     lat.sort_by(f64::total_cmp);
     let pct = |p: f64| common::percentile(&lat, p);
+    let median = pct(0.5);
+    let over_twice_median = lat.iter().filter(|&&l| l > 2.0 * median).count();
     Ok(RunResult {
         relay,
         rate_hz,
@@ -782,7 +831,8 @@ fn measure(
         lost: n - arrived.len(),
         duplicates,
         wrong_size,
-        median_us: pct(0.5),
+        median_us: median,
+        over_twice_median,
         p99_us: pct(0.99),
         max_us: lat.last().copied().unwrap_or(f64::NAN),
         achieved_hz: n as f64 / send_time.as_secs_f64(),
@@ -796,9 +846,9 @@ fn table(results: &[RunResult]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "| relay | rate | messages | median | p99 | max | lost | relay CPU | other processes' CPU, mean / peak |"
+        "| relay | rate | messages | median | p99 | over 2 × median | max | lost | relay CPU | other processes' CPU, mean / peak |"
     );
-    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in results {
         let mut lost = r.lost.to_string();
         if r.duplicates > 0 {
@@ -809,12 +859,13 @@ fn table(results: &[RunResult]) -> String {
         }
         let _ = writeln!(
             s,
-            "| {} | {} Hz | {} | {:.3} ms | {:.3} ms | {:.3} ms | {} | {} | {} |",
+            "| {} | {} Hz | {} | {:.3} ms | {:.3} ms | {:.1} % | {:.3} ms | {} | {} | {} |",
             r.relay.label(),
             r.rate_hz,
             r.sent,
             r.median_us / 1e3,
             r.p99_us / 1e3,
+            100.0 * r.over_twice_median as f64 / (r.sent - r.lost).max(1) as f64,
             r.max_us / 1e3,
             lost,
             r.relay_cpu_pct
@@ -902,8 +953,15 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
              by its `cpu_affinity` parameter, the rclpy relay by inheriting the bench's)"
         ),
     };
+    let latency = match opts.latency_us {
+        None => String::new(),
+        Some(us) => format!(
+            "; a CPU latency request of {us} µs held (`--cpu-dma-latency-us`: the bench holds \
+             it, the ik_solver by its `cpu_dma_latency_us` parameter)"
+        ),
+    };
     let measured = format!(
-        "Measured {} on {}; release build{bound}; ros2-client {}, RustDDS {}{}.",
+        "Measured {} on {}; release build{bound}{latency}; ros2-client {}, RustDDS {}{}.",
         common::today(),
         machine(),
         lock_version(root, "ros2-client"),

@@ -7,9 +7,16 @@
 //! after the idle period (what every message of a 100 Hz stream meets), and a second one right
 //! after it (warm: the same code, caches and CPU state just used).
 //!
+//! Then, at each rate again, a fixed piece of work with no wake-up in it after each idle
+//! period: a pass over 512 KiB (what a DDS hop's threads touch is of that order), the same
+//! instructions and memory every time. What its time varies by is the machine's, not the
+//! code's: the floor under any tail (p99) a pipeline can have. "Stretches": runs of 5 or more
+//! periods in a row whose work took over twice its median, the machine slow for a while.
+//!
 //! ```sh
 //! cargo bench --bench wake_floor              # prints a Markdown table
 //! cargo bench --bench wake_floor -- --n 3000  # messages per rate (default 2000)
+//! cargo bench --bench wake_floor -- --cpu-dma-latency-us 0  # idle CPUs poll meanwhile
 //! ```
 //!
 //! Nothing leaves the machine: both sockets are bound to 127.0.0.1. A benchmark, not a test.
@@ -32,7 +39,8 @@ fn main() -> ExitCode {
 }
 
 fn run() -> anyhow::Result<()> {
-    let n = common::count_arg(2000)?;
+    let args = common::count_args(2000)?;
+    let n = args.n;
     let here = UdpSocket::bind("127.0.0.1:0")?;
     let echo = UdpSocket::bind("127.0.0.1:0")?;
     let echo_addr = echo.local_addr()?;
@@ -83,7 +91,55 @@ fn run() -> anyhow::Result<()> {
             c.0, c.1, w.0, w.1
         );
     }
+    println!();
+    println!(
+        "| rate | periods | fixed work after the idle period: median | p99 | max | over 2 × median | stretches |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    for rate_hz in [100.0, 1000.0] {
+        let period = Duration::from_secs_f64(1.0 / rate_hz);
+        let mut memory = vec![1u64; 64 * 1024];
+        let mut times = Vec::with_capacity(n);
+        for _ in 0..20 {
+            fixed_work(&mut memory);
+        }
+        let mut next = Instant::now();
+        for _ in 0..n {
+            next += period;
+            if let Some(wait) = next.checked_duration_since(Instant::now()) {
+                std::thread::sleep(wait);
+            }
+            let t = Instant::now();
+            std::hint::black_box(fixed_work(&mut memory));
+            times.push(t.elapsed().as_secs_f64() * 1e6);
+        }
+        let mut sorted = times.clone();
+        let (median, p99) = quantiles(&mut sorted);
+        let slow: Vec<bool> = times.iter().map(|&t| t > 2.0 * median).collect();
+        let stretches = slow.split(|&s| !s).filter(|run| run.len() >= 5).count();
+        println!(
+            "| {rate_hz:.0} Hz | {n} | {median:.1} µs | {p99:.1} µs | {:.1} µs | {:.1} % | {stretches} |",
+            sorted.last().copied().unwrap_or(f64::NAN),
+            100.0 * slow.iter().filter(|&&s| s).count() as f64 / n as f64,
+        );
+    }
+    drop(args.latency);
     Ok(())
+}
+
+/// The same dependent chain over the same 512 KiB every time: a multiply-add per 8th word,
+/// four passes (one cache line per step), written back.
+fn fixed_work(memory: &mut [u64]) -> u64 {
+    let mut acc = 0u64;
+    for pass in 0..4 {
+        for word in memory.iter_mut().skip(pass).step_by(8) {
+            acc = acc
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(*word);
+            *word = acc;
+        }
+    }
+    acc
 }
 
 /// Median and 99th percentile.

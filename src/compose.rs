@@ -158,6 +158,20 @@ pub fn compose(args: &[String]) -> anyhow::Result<()> {
             Ok((name.clone(), run, setup))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
+    // A CPU latency request is the whole machine's: the lowest any node asks for is held for
+    // the process, until it ends.
+    let mut lowest: Option<u32> = None;
+    for (name, _, setup) in &nodes {
+        if let Some(us) = setup
+            .cpu_dma_latency_us()
+            .with_context(|| format!("{name}'s parameters"))?
+        {
+            lowest = Some(lowest.map_or(us, |l| l.min(us)));
+        }
+    }
+    let _latency = lowest
+        .map(node_runtime::CpuLatencyRequest::hold)
+        .transpose()?;
     let stop: Arc<AtomicBool> = node_runtime::shutdown_flag()?;
     let host = Host::composed(stop)?;
     eprintln!(

@@ -1405,25 +1405,23 @@ fn cpu_list(text: &str) -> Vec<usize> {
         .collect()
 }
 
-/// `cpu_affinity` (as ros2_control_node's) binds every thread of a node's process, the DDS
-/// threads included, to the CPUs given; a CPU it may not use is refused by number, and
-/// `biped compose` refuses it for a node (its nodes share one process).
-#[test]
-fn cpu_affinity_binds_every_thread_of_a_node_and_a_bad_cpu_is_refused_by_number() {
+/// Starts `program` (a binary beside the tests) with `args` in a private network namespace on
+/// `domain` under `timeout 60`, and waits for its "ready" line; returns the `unshare` child
+/// and the pid of the program's own process.
+fn start_ready_in_netns(
+    domain: u32,
+    program: &str,
+    args: &[&str],
+) -> (std::process::Child, String) {
     use std::io::{BufRead, BufReader};
-    // The last CPU this test may use: unless the machine has one CPU, not where an unbound
-    // node would be.
-    let ours = cpu_list(&std::fs::read_to_string("/proc/self/status").unwrap());
-    let cpu = *ours.last().unwrap();
-    let mut node = common::in_netns("exec timeout 60 \"$@\"", 196)
-        .arg(bin_dir().join("ik_solver"))
-        .args(["--ros-args", "-p", &format!("cpu_affinity:=[{cpu}]")])
+    let mut process = common::in_netns("exec timeout 60 \"$@\"", domain)
+        .arg(bin_dir().join(program))
+        .args(args)
         .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("unshare runs (root needed for a private network namespace)");
     let mut log = String::new();
-    let mut lines = BufReader::new(node.stderr.take().unwrap()).lines();
-    for line in lines.by_ref() {
+    for line in BufReader::new(process.stderr.take().unwrap()).lines() {
         let line = line.unwrap();
         log.push_str(&line);
         log.push('\n');
@@ -1431,15 +1429,39 @@ fn cpu_affinity_binds_every_thread_of_a_node_and_a_bad_cpu_is_refused_by_number(
             break;
         }
     }
-    assert!(log.contains("ready"), "ik_solver did not start: {log}");
-    // `unshare` and `sh` exec `timeout`, whose child is the node. Every thread the node has
-    // started by now (main, signal, DDS event loop and discovery, async-io) is bound.
+    assert!(log.contains("ready"), "{program} did not start: {log}");
+    // `unshare` and `sh` exec `timeout`, whose child is the program's process.
     let children =
-        std::fs::read_to_string(format!("/proc/{0}/task/{0}/children", node.id())).unwrap();
+        std::fs::read_to_string(format!("/proc/{0}/task/{0}/children", process.id())).unwrap();
     let pid = children
         .split_whitespace()
         .next()
-        .expect("timeout runs the node");
+        .expect("timeout runs the program")
+        .to_owned();
+    (process, pid)
+}
+
+/// Kills what [`start_ready_in_netns`] started: the program (killing `timeout` would leave
+/// it running); `timeout` then ends.
+fn kill_started(mut process: std::process::Child, pid: &str) {
+    let pid = nix::unistd::Pid::from_raw(pid.parse().unwrap());
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGKILL).unwrap();
+    process.wait().unwrap();
+}
+
+/// `cpu_affinity` (as ros2_control_node's) binds every thread of a node's process, the DDS
+/// threads included, to the CPUs given; a CPU it may not use is refused by number, and
+/// `biped compose` refuses it for a node (its nodes share one process).
+#[test]
+fn cpu_affinity_binds_every_thread_of_a_node_and_a_bad_cpu_is_refused_by_number() {
+    // The last CPU this test may use: unless the machine has one CPU, not where an unbound
+    // node would be.
+    let ours = cpu_list(&std::fs::read_to_string("/proc/self/status").unwrap());
+    let cpu = *ours.last().unwrap();
+    let cpus = format!("cpu_affinity:=[{cpu}]");
+    let (node, pid) = start_ready_in_netns(196, "ik_solver", &["--ros-args", "-p", &cpus]);
+    // Every thread the node has started by now (main, signal, DDS event loop and discovery,
+    // async-io) is bound.
     let tasks: Vec<(String, Vec<usize>)> = std::fs::read_dir(format!("/proc/{pid}/task"))
         .unwrap()
         .map(|t| {
@@ -1448,10 +1470,7 @@ fn cpu_affinity_binds_every_thread_of_a_node_and_a_bad_cpu_is_refused_by_number(
             (name, cpu_list(&status))
         })
         .collect();
-    // The node (killing `timeout` would leave it running); `timeout` then ends.
-    let pid = nix::unistd::Pid::from_raw(pid.parse().unwrap());
-    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGKILL).unwrap();
-    node.wait().unwrap();
+    kill_started(node, &pid);
     assert!(tasks.len() >= 3, "{tasks:?}");
     for (name, cpus) in &tasks {
         assert_eq!(cpus, &vec![cpu], "{name} (of {tasks:?})");
@@ -1483,4 +1502,84 @@ fn cpu_affinity_binds_every_thread_of_a_node_and_a_bad_cpu_is_refused_by_number(
         err.contains("parameter `cpu_affinity` binds a node's own process"),
         "{err}"
     );
+}
+
+/// The files a process holds open that are the PM QoS CPU latency device.
+fn held_latency_requests(pid: &str) -> usize {
+    std::fs::read_dir(format!("/proc/{pid}/fd"))
+        .unwrap()
+        .filter(|fd| {
+            std::fs::read_link(fd.as_ref().unwrap().path())
+                .is_ok_and(|target| target == std::path::Path::new("/dev/cpu_dma_latency"))
+        })
+        .count()
+}
+
+/// `cpu_dma_latency_us` makes a node's process hold a CPU latency request (the PM QoS device
+/// open, the machine's limit at most the value) for as long as it runs; `biped compose` holds
+/// one, the lowest its nodes ask for; a value that is not microseconds is refused naming it.
+#[test]
+fn cpu_dma_latency_is_held_while_a_node_runs_and_a_bad_value_is_refused_naming_it() {
+    use std::io::Read as _;
+    let limit_us = || {
+        let mut bytes = [0u8; 4];
+        std::fs::File::open("/dev/cpu_dma_latency")
+            .unwrap()
+            .read_exact(&mut bytes)
+            .unwrap();
+        i32::from_ne_bytes(bytes)
+    };
+    let (node, pid) = start_ready_in_netns(
+        198,
+        "ik_solver",
+        &["--ros-args", "-p", "cpu_dma_latency_us:=50"],
+    );
+    let held = held_latency_requests(&pid);
+    let limit = limit_us();
+    kill_started(node, &pid);
+    assert_eq!(held, 1, "the ik_solver holds {held} requests");
+    assert!(limit <= 50, "the machine's limit is {limit} µs");
+
+    let (node, pid) = start_ready_in_netns(198, "ik_solver", &[]);
+    let held = held_latency_requests(&pid);
+    kill_started(node, &pid);
+    assert_eq!(held, 0, "unset, the ik_solver still holds {held} requests");
+
+    let (composed, pid) = start_ready_in_netns(
+        199,
+        "biped",
+        &[
+            "compose",
+            "--node",
+            "ik_solver",
+            "--ros-args",
+            "-p",
+            "cpu_dma_latency_us:=80",
+            "--node",
+            "joint_bridge",
+            "--ros-args",
+            "-p",
+            "backend:=mock",
+            "-p",
+            "cpu_dma_latency_us:=60",
+        ],
+    );
+    let held = held_latency_requests(&pid);
+    kill_started(composed, &pid);
+    assert_eq!(held, 1, "biped compose holds {held} requests");
+
+    for (value, named) in [("-1", "-1"), ("0.5", "0.5"), ("fast", "fast")] {
+        let refused = common::in_netns("exec timeout 60 \"$@\"", 199)
+            .arg(bin_dir().join("ik_solver"))
+            .args(["--ros-args", "-p", &format!("cpu_dma_latency_us:={value}")])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&refused.stderr);
+        assert_eq!(refused.status.code(), Some(1), "{value}: {err}");
+        assert!(
+            err.contains("ik_solver: error: parameters: parameter `cpu_dma_latency_us`: ")
+                && err.contains(named),
+            "{value}: {err}"
+        );
+    }
 }

@@ -199,24 +199,44 @@ pub fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[rank - 1]
 }
 
-/// The arguments of a bench that takes only a count: `--n N` (default `default`); cargo's
-/// `--bench` is ignored. A bad or unknown argument is an error naming it.
-pub fn count_arg(default: usize) -> anyhow::Result<usize> {
+/// The arguments of a bench that takes a count and a CPU latency request: `--n N` (default
+/// `default`) and `--cpu-dma-latency-us US` (hold a CPU latency request while it runs, as a
+/// node's `cpu_dma_latency_us` parameter does); cargo's `--bench` is ignored. A bad or unknown
+/// argument is an error naming it.
+#[derive(Debug)]
+pub struct CountArgs {
+    /// `--n`.
+    pub n: usize,
+    /// `--cpu-dma-latency-us`, held while this lives.
+    pub latency: Option<node_runtime::CpuLatencyRequest>,
+}
+
+/// Parses [`CountArgs`] and holds the latency request if one is given.
+pub fn count_args(default: usize) -> anyhow::Result<CountArgs> {
     let mut n = default;
+    let mut latency = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
+        let mut value = || args.next().ok_or_else(|| anyhow!("{a} needs a value"));
         match a.as_str() {
             "--bench" => {}
             "--n" => {
-                let v = args.next().ok_or_else(|| anyhow!("--n needs a count"))?;
+                let v = value()?;
                 n = v
                     .parse()
                     .ok()
                     .filter(|&n| n > 0)
                     .ok_or_else(|| anyhow!("--n `{v}` is not a positive count"))?;
             }
-            other => bail!("unknown argument `{other}` (options: --n N)"),
+            "--cpu-dma-latency-us" => {
+                let v = value()?;
+                let yaml = serde_norway::from_str(&v)
+                    .map_err(|e| anyhow!("--cpu-dma-latency-us `{v}`: {e}"))?;
+                let us = node_runtime::cpu_latency::cpu_dma_latency_of(&yaml)?;
+                latency = Some(node_runtime::CpuLatencyRequest::hold(us)?);
+            }
+            other => bail!("unknown argument `{other}` (options: --n N, --cpu-dma-latency-us US)"),
         }
     }
-    Ok(n)
+    Ok(CountArgs { n, latency })
 }

@@ -28,6 +28,20 @@ pub enum RosError {
         #[source]
         source: nix::errno::Errno,
     },
+    /// The kernel refused the CPU latency request of `cpu_dma_latency_us`.
+    #[error(
+        "parameter `cpu_dma_latency_us` = {latency_us}: cannot hold a CPU latency request on \
+         {device} (it takes write access to the device: root, as a rule)"
+    )]
+    CpuLatency {
+        /// The latency asked for, µs.
+        latency_us: u32,
+        /// The PM QoS device.
+        device: &'static str,
+        /// The kernel's answer.
+        #[source]
+        source: std::io::Error,
+    },
     /// DDS or ros2-client refused to create something.
     #[error("{what}: {message}")]
     Dds {

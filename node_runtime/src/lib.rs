@@ -14,7 +14,9 @@
 //!   alone in its process, or composed with others in one) and the started node
 //!   ([`RosNode`]: typed publishers and subscriptions, logging, the executor);
 //! - [`local`]: in-process delivery between nodes composed in one process;
-//! - [`affinity`]: the `cpu_affinity` parameter, binding a node's process to CPUs.
+//! - [`affinity`]: the `cpu_affinity` parameter, binding a node's process to CPUs;
+//! - [`cpu_latency`]: the `cpu_dma_latency_us` parameter, a CPU latency request held while
+//!   the node's process runs.
 //!
 //! ros2-client (pure Rust over RustDDS) underneath; no core crate depends on this one, only
 //! the node binaries (each core crate's `node` feature) and the `biped` command.
@@ -23,6 +25,7 @@ pub mod affinity;
 pub mod args;
 pub mod clock;
 pub mod context;
+pub mod cpu_latency;
 mod error;
 pub mod local;
 pub mod log;
@@ -37,6 +40,7 @@ pub use context::{
     DiscoveryRange, SendThread, context_for, context_from_env, context_from_env_sending_on,
     context_with_peers, ros_environment, ros_environment_from, static_peers_from,
 };
+pub use cpu_latency::{CPU_DMA_LATENCY_PARAM, CpuLatencyRequest};
 pub use error::RosError;
 pub use local::{Publisher, Subscription};
 pub use log::Log;

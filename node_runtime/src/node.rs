@@ -13,6 +13,7 @@ use serde_norway::Value;
 use crate::affinity::{CPU_AFFINITY_PARAM, bind_this_thread, cpu_affinity_of};
 use crate::args::{RosArgs, topic_name};
 use crate::context::{SendThread, context_from_env, context_from_env_sending_on};
+use crate::cpu_latency::{CPU_DMA_LATENCY_PARAM, CpuLatencyRequest, cpu_dma_latency_of};
 use crate::error::RosError;
 use crate::local::{Bus, Publisher, RosMessageBound, Subscription};
 use crate::log::Log;
@@ -139,6 +140,15 @@ impl NodeSetup {
         }
     }
 
+    /// The microseconds of the `cpu_dma_latency_us` parameter ([`crate::cpu_latency`]);
+    /// `None`: no request.
+    pub fn cpu_dma_latency_us(&self) -> Result<Option<u32>, RosError> {
+        self.params
+            .get(CPU_DMA_LATENCY_PARAM)
+            .map(cpu_dma_latency_of)
+            .transpose()
+    }
+
     /// A string parameter, or `default`.
     pub fn str_param(&self, name: &str, default: &str) -> Result<String, RosError> {
         match self.params.get(name) {
@@ -175,9 +185,9 @@ impl NodeSetup {
 }
 
 /// The `main` of a node alone in its process: its setup from the command line, the process
-/// bound to the CPUs of `cpu_affinity` if set, its host ([`Host::process`]), then `run` on
-/// this thread until it ends; an error is printed as `<name>: error: ...` and fails the
-/// process.
+/// bound to the CPUs of `cpu_affinity` if set, the CPU latency request of
+/// `cpu_dma_latency_us` held if set, its host ([`Host::process`]), then `run` on this thread
+/// until it ends; an error is printed as `<name>: error: ...` and fails the process.
 pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
     name: &str,
     run: impl FnOnce(NodeSetup, Host) -> F,
@@ -188,6 +198,11 @@ pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
         if let Some(cpus) = setup.cpu_affinity().map_err(|e| e.to_string())? {
             bind_this_thread(&cpus).map_err(|e| e.to_string())?;
         }
+        // Held until the process ends (the kernel drops it with the file, however it ends).
+        let _latency = setup
+            .cpu_dma_latency_us()
+            .and_then(|us| us.map(CpuLatencyRequest::hold).transpose())
+            .map_err(|e| format!("{e:#}"))?;
         let host = Host::process().map_err(|e| e.to_string())?;
         smol::block_on(run(setup, host)).map_err(|e| format!("{e:#}"))
     })();
@@ -328,8 +343,8 @@ impl RosNode {
         check: Option<ParameterCheck>,
     ) -> Result<Self, RosError> {
         let context = host.context.clone();
-        // `cpu_affinity` (bound at start-up by `node_main`) is declared, so a peer sees it,
-        // and a set from a peer is refused.
+        // `cpu_affinity` and `cpu_dma_latency_us` (applied at start-up by `node_main`, or
+        // `biped compose`) are declared, so a peer sees them, and a set from a peer is refused.
         let mut declared = declared.clone();
         if let Some(cpus) = setup.cpu_affinity()? {
             declared.insert(
@@ -337,8 +352,14 @@ impl RosNode {
                 ParameterValue::IntegerArray(cpus.iter().map(|&c| c as i64).collect()),
             );
         }
+        if let Some(us) = setup.cpu_dma_latency_us()? {
+            declared.insert(
+                CPU_DMA_LATENCY_PARAM.to_owned(),
+                ParameterValue::Integer(i64::from(us)),
+            );
+        }
         let check: ParameterCheck = Box::new(move |name: &str, value: &ParameterValue| {
-            if name == CPU_AFFINITY_PARAM {
+            if name == CPU_AFFINITY_PARAM || name == CPU_DMA_LATENCY_PARAM {
                 Err(read_at_startup_only(name))
             } else {
                 check.as_ref().map_or(Ok(()), |f| f(name, value))

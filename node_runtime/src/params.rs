@@ -162,9 +162,14 @@ pub fn read_at_startup() -> ParameterCheck {
     })
 }
 
-/// The parameters every node takes besides its own: ROS's `use_sim_time`, and
-/// `cpu_affinity` (the CPUs its process is bound to, [`crate::affinity`]).
-pub const COMMON_PARAMS: [&str; 2] = ["use_sim_time", crate::affinity::CPU_AFFINITY_PARAM];
+/// The parameters every node takes besides its own: ROS's `use_sim_time`, `cpu_affinity`
+/// (the CPUs its process is bound to, [`crate::affinity`]) and `cpu_dma_latency_us` (a CPU
+/// latency request its process holds, [`crate::cpu_latency`]).
+pub const COMMON_PARAMS: [&str; 3] = [
+    "use_sim_time",
+    crate::affinity::CPU_AFFINITY_PARAM,
+    crate::cpu_latency::CPU_DMA_LATENCY_PARAM,
+];
 
 /// Rejects any parameter not in `known` (besides [`COMMON_PARAMS`]), naming it.
 pub fn check_known(params: &BTreeMap<String, Value>, known: &[&str]) -> Result<(), RosError> {
