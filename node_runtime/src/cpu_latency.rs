@@ -123,6 +123,25 @@ mod tests {
         }
     }
 
+    /// A refused request names the value, the device and the kernel's answer, as a node
+    /// prints it when it cannot start.
+    #[test]
+    fn a_refusal_names_the_value_the_device_and_the_kernels_answer() {
+        let e = RosError::CpuLatency {
+            latency_us: 7,
+            device: CPU_DMA_LATENCY_DEVICE,
+            source: std::io::Error::from(std::io::ErrorKind::PermissionDenied),
+        };
+        let text = crate::node::with_sources(&e);
+        assert!(
+            text.starts_with(
+                "parameter `cpu_dma_latency_us` = 7: cannot hold a CPU latency request on \
+                 /dev/cpu_dma_latency"
+            ) && text.ends_with(": permission denied"),
+            "{text}"
+        );
+    }
+
     /// The kernel's limit follows the request while it is held and lets go when it is dropped
     /// (this machine's tests run as root; no other test holds a request this low: the fleet
     /// test's node holds 50 µs).

@@ -184,6 +184,19 @@ impl NodeSetup {
     }
 }
 
+/// An error and its sources, `error: source: source's source`, as anyhow's `{:#}` writes
+/// them: the kernel's answer under a refused binding or latency request.
+pub(crate) fn with_sources(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(s) = source {
+        text.push_str(": ");
+        text.push_str(&s.to_string());
+        source = s.source();
+    }
+    text
+}
+
 /// The `main` of a node alone in its process: its setup from the command line, the process
 /// bound to the CPUs of `cpu_affinity` if set, the CPU latency request of
 /// `cpu_dma_latency_us` held if set, its host ([`Host::process`]), then `run` on this thread
@@ -196,13 +209,13 @@ pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
         let setup = NodeSetup::from_env(name).map_err(|e| e.to_string())?;
         // Before any other thread starts: the DDS and signal threads inherit it.
         if let Some(cpus) = setup.cpu_affinity().map_err(|e| e.to_string())? {
-            bind_this_thread(&cpus).map_err(|e| e.to_string())?;
+            bind_this_thread(&cpus).map_err(|e| with_sources(&e))?;
         }
         // Held until the process ends (the kernel drops it with the file, however it ends).
         let _latency = setup
             .cpu_dma_latency_us()
             .and_then(|us| us.map(CpuLatencyRequest::hold).transpose())
-            .map_err(|e| format!("{e:#}"))?;
+            .map_err(|e| with_sources(&e))?;
         let host = Host::process().map_err(|e| e.to_string())?;
         smol::block_on(run(setup, host)).map_err(|e| format!("{e:#}"))
     })();
