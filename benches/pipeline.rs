@@ -138,12 +138,7 @@ impl Opts {
                         .with_context(|| format!("--cpu-affinity {list}"))?;
                     o.cpus = node_runtime::affinity::cpu_affinity_of(&yaml)?;
                 }
-                "--cpu-dma-latency-us" => {
-                    let us = value()?;
-                    let yaml = serde_norway::from_str(&us)
-                        .with_context(|| format!("--cpu-dma-latency-us {us}"))?;
-                    o.latency_us = Some(node_runtime::cpu_latency::cpu_dma_latency_of(&yaml)?);
-                }
+                "--cpu-dma-latency-us" => o.latency_us = Some(common::latency_arg(&value()?)?),
                 "--dump" => o.dump = Some(PathBuf::from(value()?)),
                 "--only" => {
                     o.relays = match value()?.as_str() {

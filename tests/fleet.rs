@@ -1509,8 +1509,9 @@ fn held_latency_requests(pid: &str) -> usize {
     std::fs::read_dir(format!("/proc/{pid}/fd"))
         .unwrap()
         .filter(|fd| {
-            std::fs::read_link(fd.as_ref().unwrap().path())
-                .is_ok_and(|target| target == std::path::Path::new("/dev/cpu_dma_latency"))
+            std::fs::read_link(fd.as_ref().unwrap().path()).is_ok_and(|target| {
+                target == std::path::Path::new(node_runtime::cpu_latency::CPU_DMA_LATENCY_DEVICE)
+            })
         })
         .count()
 }
@@ -1520,15 +1521,7 @@ fn held_latency_requests(pid: &str) -> usize {
 /// one, the lowest its nodes ask for; a value that is not microseconds is refused naming it.
 #[test]
 fn cpu_dma_latency_is_held_while_a_node_runs_and_a_bad_value_is_refused_naming_it() {
-    use std::io::Read as _;
-    let limit_us = || {
-        let mut bytes = [0u8; 4];
-        std::fs::File::open("/dev/cpu_dma_latency")
-            .unwrap()
-            .read_exact(&mut bytes)
-            .unwrap();
-        i32::from_ne_bytes(bytes)
-    };
+    let limit_us = || node_runtime::cpu_latency::current_limit_us().unwrap();
     let (node, pid) = start_ready_in_netns(
         198,
         "ik_solver",
@@ -1565,8 +1558,13 @@ fn cpu_dma_latency_is_held_while_a_node_runs_and_a_bad_value_is_refused_naming_i
         ],
     );
     let held = held_latency_requests(&pid);
+    let limit = limit_us();
     kill_started(composed, &pid);
     assert_eq!(held, 1, "biped compose holds {held} requests");
+    assert!(
+        limit <= 60,
+        "the machine's limit is {limit} µs, not its nodes' lowest"
+    );
 
     for (value, named) in [("-1", "-1"), ("0.5", "0.5"), ("fast", "fast")] {
         let refused = common::in_netns("exec timeout 60 \"$@\"", 199)

@@ -199,6 +199,13 @@ pub fn percentile(sorted: &[f64], p: f64) -> f64 {
     sorted[rank - 1]
 }
 
+/// The microseconds of a `--cpu-dma-latency-us` argument, checked as the node parameter's.
+pub fn latency_arg(value: &str) -> anyhow::Result<u32> {
+    let yaml = serde_norway::from_str(value)
+        .map_err(|e| anyhow!("--cpu-dma-latency-us `{value}`: {e}"))?;
+    Ok(node_runtime::cpu_latency::cpu_dma_latency_of(&yaml)?)
+}
+
 /// The arguments of a bench that takes a count and a CPU latency request: `--n N` (default
 /// `default`) and `--cpu-dma-latency-us US` (hold a CPU latency request while it runs, as a
 /// node's `cpu_dma_latency_us` parameter does); cargo's `--bench` is ignored. A bad or unknown
@@ -229,10 +236,7 @@ pub fn count_args(default: usize) -> anyhow::Result<CountArgs> {
                     .ok_or_else(|| anyhow!("--n `{v}` is not a positive count"))?;
             }
             "--cpu-dma-latency-us" => {
-                let v = value()?;
-                let yaml = serde_norway::from_str(&v)
-                    .map_err(|e| anyhow!("--cpu-dma-latency-us `{v}`: {e}"))?;
-                let us = node_runtime::cpu_latency::cpu_dma_latency_of(&yaml)?;
+                let us = latency_arg(&value()?)?;
                 latency = Some(node_runtime::CpuLatencyRequest::hold(us)?);
             }
             other => bail!("unknown argument `{other}` (options: --n N, --cpu-dma-latency-us US)"),
