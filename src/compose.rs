@@ -160,16 +160,18 @@ pub fn compose(args: &[String]) -> anyhow::Result<()> {
         .collect::<anyhow::Result<Vec<_>>>()?;
     // A CPU latency request is the whole machine's: the lowest any node asks for is held for
     // the process, until it ends.
-    let mut lowest: Option<u32> = None;
-    for (name, _, setup) in &nodes {
-        if let Some(us) = setup
-            .cpu_dma_latency_us()
-            .with_context(|| format!("{name}'s parameters"))?
-        {
-            lowest = Some(lowest.map_or(us, |l| l.min(us)));
-        }
-    }
-    let _latency = lowest
+    let requests = nodes
+        .iter()
+        .map(|(name, _, setup)| {
+            setup
+                .cpu_dma_latency_us()
+                .with_context(|| format!("{name}'s parameters"))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let _latency = requests
+        .into_iter()
+        .flatten()
+        .min()
         .map(node_runtime::CpuLatencyRequest::hold)
         .transpose()?;
     let stop: Arc<AtomicBool> = node_runtime::shutdown_flag()?;

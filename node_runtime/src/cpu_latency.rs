@@ -132,7 +132,7 @@ mod tests {
             device: CPU_DMA_LATENCY_DEVICE,
             source: std::io::Error::from(std::io::ErrorKind::PermissionDenied),
         };
-        let text = crate::node::with_sources(&e);
+        let text = crate::node::printed(e);
         assert!(
             text.starts_with(
                 "parameter `cpu_dma_latency_us` = 7: cannot hold a CPU latency request on \

@@ -184,17 +184,10 @@ impl NodeSetup {
     }
 }
 
-/// An error and its sources, `error: source: source's source`, as anyhow's `{:#}` writes
-/// them: the kernel's answer under a refused binding or latency request.
-pub(crate) fn with_sources(e: &dyn std::error::Error) -> String {
-    let mut text = e.to_string();
-    let mut source = e.source();
-    while let Some(s) = source {
-        text.push_str(": ");
-        text.push_str(&s.to_string());
-        source = s.source();
-    }
-    text
+/// A start-up error as a node prints it: with its sources (`error: source: ...`), e.g. the
+/// kernel's answer under a refused binding or latency request.
+pub(crate) fn printed(e: RosError) -> String {
+    format!("{:#}", anyhow::Error::new(e))
 }
 
 /// The `main` of a node alone in its process: its setup from the command line, the process
@@ -206,17 +199,17 @@ pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
     run: impl FnOnce(NodeSetup, Host) -> F,
 ) -> std::process::ExitCode {
     let result = (|| {
-        let setup = NodeSetup::from_env(name).map_err(|e| e.to_string())?;
+        let setup = NodeSetup::from_env(name).map_err(printed)?;
         // Before any other thread starts: the DDS and signal threads inherit it.
-        if let Some(cpus) = setup.cpu_affinity().map_err(|e| e.to_string())? {
-            bind_this_thread(&cpus).map_err(|e| with_sources(&e))?;
+        if let Some(cpus) = setup.cpu_affinity().map_err(printed)? {
+            bind_this_thread(&cpus).map_err(printed)?;
         }
         // Held until the process ends (the kernel drops it with the file, however it ends).
         let _latency = setup
             .cpu_dma_latency_us()
             .and_then(|us| us.map(CpuLatencyRequest::hold).transpose())
-            .map_err(|e| with_sources(&e))?;
-        let host = Host::process().map_err(|e| e.to_string())?;
+            .map_err(printed)?;
+        let host = Host::process().map_err(printed)?;
         smol::block_on(run(setup, host)).map_err(|e| format!("{e:#}"))
     })();
     match result {
