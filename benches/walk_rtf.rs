@@ -10,9 +10,9 @@
 //! 4. `biped walk --composed`: the same with gait_planner, ik_solver, joint_bridge and
 //!    sim_bridge in one process (`biped compose`, in-process delivery between them).
 //!
-//! For the two fleets, also the messaging work of one tick: UDP datagrams (the network
-//! namespace's counters), context switches and CPU time (of every process of the run, from
-//! `getrusage` of the reaped children), from a 10-step walk less a 2-step one.
+//! For the two fleets, also the messaging work of one tick, from the walk's report
+//! (`work_per_tick`): CPU time and context switches of every process of the run, UDP
+//! datagrams sent in its private network namespace.
 //!
 //! `cargo build --release --workspace && cargo bench --bench walk_rtf` (the fleet runs in a
 //! private network namespace: root, `unshare -n`). Prints two Markdown tables.
@@ -87,8 +87,8 @@ fn main() -> ExitCode {
         );
         return ExitCode::FAILURE;
     }
-    // (variant, its runs: real-time factor and messaging work per tick).
-    let mut fleets: Vec<(&str, Vec<Walked>)> = Vec::new();
+    // (variant, its runs' reports).
+    let mut fleets: Vec<(&str, Vec<serde_json::Value>)> = Vec::new();
     for (what, extra) in [
         ("`biped walk`: the fleet over DDS in lockstep", &[][..]),
         (
@@ -96,22 +96,31 @@ fn main() -> ExitCode {
             &["--composed"][..],
         ),
     ] {
-        let mut runs = Vec::new();
+        let mut reports = Vec::new();
         for run in 0..RUNS {
-            // A short walk and the full one: the difference is the work of the extra ticks,
-            // without start-up, discovery and shutdown.
-            let Some(short) = walk(&biped, SHORT_STEPS, extra, run) else {
+            let out = std::env::temp_dir().join(format!("biped-rtf-{}-{run}", std::process::id()));
+            let status = Command::new("unshare")
+                .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
+                .arg(&biped)
+                .args(["walk", "--steps", &STEPS.to_string(), "--out"])
+                .arg(&out)
+                .args(extra)
+                .env("ROS_DOMAIN_ID", "90")
+                .stdout(std::process::Stdio::null())
+                .status()
+                .expect("unshare runs (root needed)");
+            if !status.success() {
+                eprintln!("biped walk failed; logs in {}", out.join("logs").display());
                 return ExitCode::FAILURE;
-            };
-            let Some(full) = walk(&biped, STEPS, extra, run) else {
-                return ExitCode::FAILURE;
-            };
-            runs.push(Walked {
-                rtf: full.rtf,
-                work: full.work.per_tick_over(&short.work),
-            });
+            }
+            let report: serde_json::Value = serde_json::from_str(
+                &std::fs::read_to_string(out.join("report.json")).expect("report.json"),
+            )
+            .expect("report is JSON");
+            reports.push(report);
+            let _ = std::fs::remove_dir_all(&out);
         }
-        fleets.push((what, runs));
+        fleets.push((what, reports));
     }
     println!(
         "{} steps ({plan_s:.1} s of walk), median of {RUNS} runs, 1 kHz physics, 100 Hz control\n",
@@ -133,8 +142,17 @@ fn main() -> ExitCode {
             rtf / bare
         );
     }
-    for (what, runs) in &fleets {
-        let rtf = median(runs.iter().map(|r| r.rtf).collect());
+    // The median over the runs of a report's number at `path`.
+    let m = |reports: &[serde_json::Value], path: &str| {
+        median(
+            reports
+                .iter()
+                .map(|r| r.pointer(path).and_then(|v| v.as_f64()).unwrap_or(f64::NAN))
+                .collect(),
+        )
+    };
+    for (what, reports) in &fleets {
+        let rtf = m(reports, "/real_time_factor");
         println!(
             "| {what} | {rtf:.1}x | {:.3} ms | {:.2} |",
             10.0 / rtf,
@@ -142,131 +160,19 @@ fn main() -> ExitCode {
         );
     }
     println!(
-        "\nThe messaging work of one 10 ms tick (all processes of the run: the nodes, \
-         robot_state_publisher and `biped walk`'s recorder), from a {STEPS}-step walk less a \
-         {SHORT_STEPS}-step one (start-up, discovery and shutdown cancel out), median of {RUNS}:\n"
+        "\nWhat one tick cost the machine (`report.json`'s `work_per_tick`, from the first \
+         `/clock` to the end; every process of the run: the nodes, robot_state_publisher and \
+         `biped walk` with its recorder), median of {RUNS} runs:\n"
     );
-    println!("| what runs | UDP datagrams | context switches | CPU time |");
+    println!("| what runs | CPU time | context switches | UDP datagrams |");
     println!("|---|---:|---:|---:|");
-    for (what, runs) in &fleets {
-        let m = |f: fn(&TickWork) -> f64| median(runs.iter().map(|r| f(&r.work)).collect());
+    for (what, reports) in &fleets {
         println!(
-            "| {what} | {:.1} | {:.1} | {:.3} ms |",
-            m(|w| w.datagrams),
-            m(|w| w.context_switches),
-            m(|w| w.cpu_s) * 1e3
+            "| {what} | {:.3} ms | {:.1} | {:.1} |",
+            m(reports, "/work_per_tick/cpu_ms"),
+            m(reports, "/work_per_tick/context_switches"),
+            m(reports, "/work_per_tick/udp_datagrams"),
         );
     }
     ExitCode::SUCCESS
-}
-
-/// Steps of the short walk whose work is subtracted.
-const SHORT_STEPS: u32 = 2;
-
-/// What a run of `biped walk` cost: totals, or per tick.
-#[derive(Debug, Clone, Copy)]
-struct TickWork {
-    /// Simulated 10 ms ticks.
-    ticks: f64,
-    /// UDP datagrams sent in the run's network namespace.
-    datagrams: f64,
-    /// Voluntary and involuntary context switches of every process of the run.
-    context_switches: f64,
-    /// User and system CPU time of every process of the run (s).
-    cpu_s: f64,
-}
-
-impl TickWork {
-    /// The work per tick of the ticks `self` ran beyond `short`.
-    fn per_tick_over(&self, short: &TickWork) -> TickWork {
-        let ticks = self.ticks - short.ticks;
-        TickWork {
-            ticks: 1.0,
-            datagrams: (self.datagrams - short.datagrams) / ticks,
-            context_switches: (self.context_switches - short.context_switches) / ticks,
-            cpu_s: (self.cpu_s - short.cpu_s) / ticks,
-        }
-    }
-}
-
-/// A finished walk: its real-time factor and what it cost (in total, or per tick).
-struct Walked {
-    rtf: f64,
-    work: TickWork,
-}
-
-/// Context switches and CPU time (s) of the reaped children of this process so far.
-fn children_usage() -> (f64, f64) {
-    use nix::sys::resource::{UsageWho, getrusage};
-    let u = getrusage(UsageWho::RUSAGE_CHILDREN).expect("getrusage");
-    let secs = |t: nix::sys::time::TimeVal| t.tv_sec() as f64 + t.tv_usec() as f64 * 1e-6;
-    (
-        (u.voluntary_context_switches() + u.involuntary_context_switches()) as f64,
-        secs(u.user_time()) + secs(u.system_time()),
-    )
-}
-
-/// Runs `biped walk --steps steps` (plus `extra`) in a private network namespace, and reads
-/// its report and the namespace's UDP counters when it ends. `None` (and why, on stderr) if
-/// the walk failed.
-fn walk(biped: &std::path::Path, steps: u32, extra: &[&str], run: usize) -> Option<Walked> {
-    let out = std::env::temp_dir().join(format!("biped-rtf-{}-{run}-{steps}", std::process::id()));
-    let snmp = out.with_extension("snmp");
-    let before = children_usage();
-    let status = Command::new("unshare")
-        .args([
-            "-n",
-            "sh",
-            "-c",
-            // The namespace's UDP counters after the walk (it is gone once the shell ends).
-            "ip link set lo up && \"$@\"; rc=$?; grep '^Udp:' /proc/net/snmp > \"$SNMP\"; exit $rc",
-            "sh",
-        ])
-        .arg(biped)
-        .args(["walk", "--steps", &steps.to_string(), "--out"])
-        .arg(&out)
-        .args(extra)
-        .env("ROS_DOMAIN_ID", "90")
-        .env("SNMP", &snmp)
-        .stdout(std::process::Stdio::null())
-        .status()
-        .expect("unshare runs (root needed)");
-    let after = children_usage();
-    if !status.success() {
-        eprintln!("biped walk failed; logs in {}", out.join("logs").display());
-        return None;
-    }
-    let report: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(out.join("report.json")).expect("report.json"),
-    )
-    .expect("report is JSON");
-    let rtf = report["real_time_factor"].as_f64().unwrap_or(0.0);
-    let ticks = report["simulated_s"].as_f64().unwrap_or(0.0) / 0.01;
-    let datagrams = out_datagrams(&std::fs::read_to_string(&snmp).expect("UDP counters"));
-    let _ = std::fs::remove_dir_all(&out);
-    let _ = std::fs::remove_file(&snmp);
-    Some(Walked {
-        rtf,
-        work: TickWork {
-            ticks,
-            datagrams,
-            context_switches: after.0 - before.0,
-            cpu_s: after.1 - before.1,
-        },
-    })
-}
-
-/// `OutDatagrams` of the `Udp:` lines of `/proc/net/snmp` (a header line, then values).
-fn out_datagrams(snmp: &str) -> f64 {
-    let mut lines = snmp
-        .lines()
-        .map(|l| l.split_whitespace().collect::<Vec<_>>());
-    let (Some(names), Some(values)) = (lines.next(), lines.next()) else {
-        panic!("no Udp: lines in /proc/net/snmp: {snmp:?}");
-    };
-    let i = names
-        .iter()
-        .position(|n| *n == "OutDatagrams")
-        .expect("OutDatagrams in /proc/net/snmp");
-    values[i].parse().expect("a count")
 }

@@ -562,6 +562,14 @@ impl Fleet {
         None
     }
 
+    /// The process ids of the running nodes.
+    pub fn pids(&self) -> Vec<u32> {
+        self.running
+            .iter()
+            .filter_map(|r| r.child.as_ref().map(Child::id))
+            .collect()
+    }
+
     /// Asks every node to stop (SIGINT), waits up to 5 s, kills what is left.
     pub fn stop(&mut self, verbose: bool) {
         for r in &mut self.running {

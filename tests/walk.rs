@@ -111,10 +111,25 @@ fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
     assert!(!b.join("logs/joint_bridge.log").exists());
     let mut r2 = report(&b);
     let mut r1 = r.clone();
+    // The messaging work of a tick, counted over the same ticks: composed, the lockstep's
+    // hops between the four nodes send nothing over UDP (each sample to another process is
+    // a datagram, and an acknowledgement back), so fewer datagrams leave per tick; those
+    // left go to robot_state_publisher and `biped walk`'s recorder.
+    let work = |r: &Value, key: &str| num(&r["work_per_tick"], key);
+    for r in [&r1, &r2] {
+        // The run records 38 s of simulated time: over 3000 ticks of 10 ms.
+        assert!(work(r, "ticks") > 3000.0, "{}", r["work_per_tick"]);
+    }
+    let (separate, composed) = (work(&r1, "udp_datagrams"), work(&r2, "udp_datagrams"));
+    assert!(
+        composed >= 8.0 && composed < separate - 6.0,
+        "UDP datagrams per tick: {separate} with four processes, {composed} composed"
+    );
     for v in [&mut r1, &mut r2] {
         let o = v.as_object_mut().unwrap();
         o.remove("wall_s");
         o.remove("real_time_factor");
+        o.remove("work_per_tick");
     }
     assert_eq!(r1, r2, "two lockstep runs of the same walk differ");
     let _ = std::fs::remove_dir_all(&a);

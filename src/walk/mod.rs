@@ -15,6 +15,7 @@
 pub mod pictures;
 pub mod record;
 pub mod report;
+pub mod work;
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -339,6 +340,14 @@ impl StopDriver {
     }
 }
 
+/// The work so far of the fleet's processes and this one (its recorder), and the datagrams
+/// of the network namespace; `None` where `/proc` cannot tell (not Linux).
+fn run_work(fleet: &Fleet) -> Option<work::Work> {
+    let mut pids = fleet.pids();
+    pids.push(std::process::id());
+    work::Work::now(&pids).ok()
+}
+
 /// Runs the walk.
 pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     if !o.estop_at_s.is_empty() && !o.pause_at_s.is_empty() {
@@ -529,6 +538,10 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     let interrupted = node_runtime::shutdown_flag()?;
     let wall0 = Instant::now();
     let mut first_clock_wall: Option<Instant> = None;
+    // The run's processes' work at the first `/clock`, that clock (ns), and the shortest
+    // step of `/clock` since: the tick (a reader may miss a value, never see a shorter one).
+    let mut work0: Option<(work::Work, i64)> = None;
+    let mut tick_ns: Option<i64> = None;
     let mut rec = Recording::default();
     let result: anyhow::Result<()> = smol::block_on(executor.run(async {
         // 1. The planner listens: send the command, a few times (it ignores repeats of a
@@ -627,9 +640,16 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 })
                 .await;
             if let Some(Ok((c, _))) = got {
-                rec.clock_ns = rec.clock_ns.max(c.clock.to_nanos());
+                let ns = c.clock.to_nanos();
+                if first_clock_wall.is_some() && ns > rec.clock_ns {
+                    tick_ns = Some(tick_ns.map_or(ns - rec.clock_ns, |t| t.min(ns - rec.clock_ns)));
+                }
+                rec.clock_ns = rec.clock_ns.max(ns);
                 last_clock_wall = Instant::now();
-                first_clock_wall.get_or_insert(last_clock_wall);
+                if first_clock_wall.is_none() {
+                    first_clock_wall = Some(last_clock_wall);
+                    work0 = run_work(&fleet).map(|w| (w, ns));
+                }
             }
             rec.drain(&phase, &commands, &states, &base, &cop, &support, &fall);
             if let Some(d) = &mut stops {
@@ -680,6 +700,10 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     }));
     let wall_s = wall0.elapsed().as_secs_f64();
     let stepping_wall_s = first_clock_wall.map_or(wall_s, |t| t.elapsed().as_secs_f64());
+    let work_per_tick = work0.and_then(|(w0, clock0_ns)| {
+        let ticks = u64::try_from((rec.clock_ns - clock0_ns) / tick_ns?).ok()?;
+        run_work(&fleet)?.per_tick_since(&w0, ticks)
+    });
     fleet.stop(false);
     // Close the bag even when the walk failed: it is how the failure is looked at.
     let recorded = recording.map(|r| r.finish()).transpose();
@@ -694,6 +718,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         report::WallTimes {
             total_s: wall_s,
             stepping_s: stepping_wall_s,
+            work_per_tick,
         },
     )?;
     let mut files = Vec::new();

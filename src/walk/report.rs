@@ -69,6 +69,11 @@ pub struct WalkSummary {
     pub wall_s: f64,
     /// Simulated seconds per wall-clock second, from the first `/clock` to the end.
     pub real_time_factor: f64,
+    /// What one tick cost the machine, averaged from the first `/clock` to the end: CPU
+    /// time and context switches of every process of the run (the nodes,
+    /// robot_state_publisher and `biped walk` with its recorder), and UDP datagrams sent in
+    /// the network namespace; `null` where `/proc` cannot tell.
+    pub work_per_tick: Option<super::work::TickWork>,
     /// Messages that could not be decoded, by topic.
     pub unreadable_messages: BTreeMap<String, u64>,
     /// Stop anywhere, measured: one entry per `--estop-at` e-stop or `--pause-at` pause.
@@ -273,6 +278,8 @@ pub struct WallTimes {
     pub total_s: f64,
     /// From the first `/clock` to the end of recording: the simulation's own time.
     pub stepping_s: f64,
+    /// The messaging work of a tick over the same span; `None` where it cannot be read.
+    pub work_per_tick: Option<super::work::TickWork>,
 }
 
 /// The measures of the recorded walk.
@@ -433,6 +440,7 @@ pub fn summarize(
         } else {
             0.0
         },
+        work_per_tick: wall.work_per_tick,
         unreadable_messages: rec
             .unreadable
             .iter()
