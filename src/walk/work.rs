@@ -28,7 +28,7 @@ pub struct TickWork {
     /// Context switches of the run's processes per tick.
     pub context_switches: f64,
     /// UDP datagrams sent in the network namespace per tick (every process of it: the
-    /// run's alone in a private namespace, as `scripts/run`, the tests and the benches use).
+    /// run's alone in a private namespace, as the tests and the benches use).
     pub udp_datagrams: f64,
 }
 
