@@ -271,7 +271,7 @@ pub fn joints_in_model_order(
         .collect()
 }
 
-/// Wall-clock times of a run (s).
+/// What a run cost: its wall-clock times (s) and, over the stepping span, its work per tick.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct WallTimes {
     /// From `biped walk`'s start to the end of recording.
