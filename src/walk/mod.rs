@@ -280,29 +280,85 @@ enum StopState {
     Releasing(ros2_client::RmwRequestId),
 }
 
-/// Asks a stop at each instant and its release [`ESTOP_HOLD_S`] after its answer.
+/// The walk time lost so far to the stops (ns): from each call to its release's answer, all
+/// of it while the bridge holds; for a pause, the brake's half of its time and the resume's
+/// other half add up to the same.
+fn held_ns(rec: &Recording) -> i64 {
+    rec.stops
+        .iter()
+        .filter_map(|e| e.reset_ns.map(|r| r - e.requested_ns))
+        .sum()
+}
+
+/// Asks a stop at each instant and its release [`ESTOP_HOLD_S`] after its answer. The
+/// simulator (`wait_for_run_until`) runs only to the next of these instants, on
+/// `/sim_bridge/run_until`, and waits there while a call is out: each call goes at the first
+/// tick at or after its instant, once the fleet has answered that tick, and is answered
+/// before the next tick, however loaded the machine (the nodes answer at the simulator's
+/// repeats of the tick and act from the next one).
 struct StopDriver {
     /// The instants, in simulated time had nothing held (ns): each hold (the planner
     /// pauses) puts the later ones off by its length.
     at_ns: std::collections::VecDeque<i64>,
     clients: StopClients,
     state: StopState,
+    /// The simulator's bound, `/sim_bridge/run_until` (latched).
+    run_until: ros2_client::Publisher<Clock>,
+    /// The bound last sent (ns).
+    sent_ns: Option<i64>,
+    /// The joint bridge's answers to the simulator's ticks (`/sim/joint_commands`).
+    answers: ros2_client::Subscription<JointState>,
+    /// The newest tick answered (ns): the planner, IK and bridge are done with it.
+    answered_tick_ns: i64,
 }
 
 impl StopDriver {
+    /// Where the simulator may run to now (ns): the next instant while idle, the release's
+    /// instant while holding, where it is while a call is out; no bound after the last stop.
+    fn bound_ns(&self, rec: &Recording) -> i64 {
+        let held_ns = held_ns(rec);
+        match self.state {
+            StopState::Idle => self.at_ns.front().map_or(i64::MAX, |t| t + held_ns),
+            StopState::Holding => {
+                let since = rec.stops.last().and_then(|e| e.answered_ns);
+                since.map_or(rec.clock_ns, |s| s + (ESTOP_HOLD_S * 1e9).round() as i64)
+            }
+            StopState::Asked(_) | StopState::Releasing(_) => rec.clock_ns,
+        }
+    }
+
+    /// Sends the simulator's bound if it changed.
+    fn send_bound(&mut self, rec: &Recording) -> anyhow::Result<()> {
+        let b = self.bound_ns(rec);
+        if self.sent_ns != Some(b) {
+            self.run_until
+                .publish(Clock {
+                    clock: Time::from_nanos(b),
+                })
+                .map_err(|e| anyhow::anyhow!("publish /sim_bridge/run_until: {e:?}"))?;
+            self.sent_ns = Some(b);
+        }
+        Ok(())
+    }
+
     fn poll(&mut self, rec: &mut Recording) -> anyhow::Result<()> {
+        self.step(rec)?;
+        self.send_bound(rec)
+    }
+
+    fn step(&mut self, rec: &mut Recording) -> anyhow::Result<()> {
         let now = rec.clock_ns;
-        // Walk time is lost from the call to the release's answer: all of it while the
-        // bridge holds; for a pause, the brake's half of its time and the resume's other
-        // half add up to the same.
-        let held_ns: i64 = rec
-            .stops
-            .iter()
-            .filter_map(|e| e.reset_ns.map(|r| r - e.requested_ns))
-            .sum();
+        let held_ns = held_ns(rec);
+        while let Ok(Some((m, _))) = self.answers.take() {
+            self.answered_tick_ns = self.answered_tick_ns.max(m.header.stamp.to_nanos());
+        }
+        // A call goes once the fleet is done with the tick the simulator holds: the nodes then
+        // take it at a repeat of that tick and act from the next, whichever way the messages
+        // race (taken during the tick, it would act from this one on some runs).
+        let tick_done = self.answered_tick_ns >= now;
         match &self.state {
             StopState::Idle => {
-                if self.at_ns.front().is_some_and(|&t| now - held_ns >= t) {
+                if tick_done && self.at_ns.front().is_some_and(|&t| now - held_ns >= t) {
                     self.at_ns.pop_front();
                     let id = self.clients.call(false)?;
                     rec.stops.push(record::StopEvent {
@@ -323,7 +379,7 @@ impl StopDriver {
             }
             StopState::Holding => {
                 let since = rec.stops.last().and_then(|e| e.answered_ns).unwrap_or(now);
-                if now >= since + (ESTOP_HOLD_S * 1e9).round() as i64 {
+                if tick_done && now >= since + (ESTOP_HOLD_S * 1e9).round() as i64 {
                     self.state = StopState::Releasing(self.clients.call(true)?);
                 }
             }
@@ -386,6 +442,10 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         // The simulator starts with the other nodes in their process: it waits at t = 0
         // until the walk command is in (step 1 below releases it).
         node_params.push(("sim_bridge".into(), "start_paused:=true".into()));
+    }
+    if !o.stop_at_s().is_empty() {
+        // The stops hold simulated time while their calls are out ([`StopDriver`]).
+        node_params.push(("sim_bridge".into(), "wait_for_run_until:=true".into()));
     }
     if let Some((scene, map_file)) = &o.scene {
         // Checked here, so a bad scene is refused before anything starts; its servos'
@@ -504,11 +564,22 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     let walk_pub = node
         .create_publisher::<WalkCommand>(&walk_topic, None)
         .map_err(|e| anyhow::anyhow!("publisher /walk_command: {e:?}"))?;
+    let mut rec = Recording::default();
     let mut stops = if o.stop_at_s().is_empty() {
         None
     } else {
         let start_ns = (o.settle_s * 1e9).round() as i64;
-        Some(StopDriver {
+        let topic = node
+            .create_topic(
+                &node_runtime::topic_name(&Default::default(), "/", "/sim_bridge/run_until")?,
+                <Clock as biped_msgs::RosMessage>::message_type_name(),
+                &node_runtime::qos::latched(),
+            )
+            .map_err(|e| anyhow::anyhow!("topic /sim_bridge/run_until: {e:?}"))?;
+        let run_until = node
+            .create_publisher::<Clock>(&topic, None)
+            .map_err(|e| anyhow::anyhow!("publisher /sim_bridge/run_until: {e:?}"))?;
+        let mut d = StopDriver {
             at_ns: o
                 .stop_at_s()
                 .iter()
@@ -516,7 +587,14 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 .collect(),
             clients: StopClients::new(&mut node, o.stop_kind())?,
             state: StopState::Idle,
-        })
+            run_until,
+            sent_ns: None,
+            answers: sub!(JointState, "/sim/joint_commands"),
+            answered_tick_ns: i64::MIN,
+        };
+        // The first bound, before the simulator starts (it waits at t = 0 without one).
+        d.send_bound(&rec)?;
+        Some(d)
     };
     let sim_pause = if o.composed {
         Some(service_client::<biped_msgs::srv::SetBool>(
@@ -542,7 +620,6 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     // step of `/clock` since: the tick (a reader may miss a value, never see a shorter one).
     let mut work0: Option<(work::Work, i64)> = None;
     let mut tick_ns: Option<i64> = None;
-    let mut rec = Recording::default();
     let result: anyhow::Result<()> = smol::block_on(executor.run(async {
         // 1. The planner listens: send the command, a few times (it ignores repeats of a
         //    stamped command), then start the simulator. Another subscriber of walk_command

@@ -114,7 +114,8 @@ pub struct StopMeasure {
     /// When `~/estop` was called, from the walk's start (s of simulated time less the
     /// earlier holds, from call to reset: the walk's own time, which stands still while held).
     pub t_s: f64,
-    /// Simulated time from the call to its answer (s): the stop lands within it.
+    /// Simulated time from the call to its answer (s): the stop lands within it. 0 in a
+    /// `biped walk` (its simulator holds simulated time while a call is out).
     pub answer_delay_s: f64,
     /// The planner's phase at the call.
     pub phase: PhaseKind,

@@ -113,6 +113,26 @@ fn pause(clock: &mut PlanClock, on: bool, brake_s: f64) -> String {
     }
 }
 
+/// Answers every `~/pause` request waiting, pausing or resuming the walk's clock.
+fn serve_pause(
+    ros: &RosNode,
+    srv: &ros2_client::Server<biped_msgs::srv::SetBoolRequest, TriggerResponse>,
+    clock: &mut PlanClock,
+    brake_s: f64,
+) {
+    while let Ok(Some((id, req))) = srv.receive_request() {
+        let said = pause(clock, req.data, brake_s);
+        ros.info(&said);
+        let answer = TriggerResponse {
+            success: true,
+            message: said,
+        };
+        if let Err(e) = srv.send_response(id, answer) {
+            ros.error(&format!("~/pause: answer not sent: {e:?}"));
+        }
+    }
+}
+
 /// The gait parameters in the node's parameter map (the robot file, the node's other own
 /// parameters and those every node takes aside).
 fn gait_params(
@@ -604,7 +624,15 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 continue;
             };
             if tick.repeat {
-                // The lockstep simulator asks again for this tick: same messages.
+                // The lockstep simulator asks again for this tick: same messages. A pause
+                // asked meanwhile is answered now and brakes from the next tick (a simulator
+                // held at `~/run_until` waits for the answer).
+                serve_pause(
+                    &ros,
+                    &pause_srv,
+                    &mut clock,
+                    planner.config().pause_brake_time_s,
+                );
                 if let Some(sent) = &last_sent {
                     publish(&ros, &targets_pub, &phase_pub, sent);
                 }
@@ -719,17 +747,12 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     });
                 }
             }
-            while let Ok(Some((id, req))) = pause_srv.receive_request() {
-                let said = pause(&mut clock, req.data, planner.config().pause_brake_time_s);
-                ros.info(&said);
-                let answer = TriggerResponse {
-                    success: true,
-                    message: said,
-                };
-                if let Err(e) = pause_srv.send_response(id, answer) {
-                    ros.error(&format!("~/pause: answer not sent: {e:?}"));
-                }
-            }
+            serve_pause(
+                &ros,
+                &pause_srv,
+                &mut clock,
+                planner.config().pause_brake_time_s,
+            );
             ticks_here += 1;
             // Frozen while the bridge holds and the walk is not pausing (an operator resumed
             // it meanwhile): the bridge ignores the commands, so the plan must not move on.

@@ -591,6 +591,10 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     Wake::Tick(Some(tick)) => {
                         let t = tick.sim_time.map_or(0.0, |s| s.as_secs_f64());
                         if tick.repeat {
+                            // The simulator says tick t again (waiting, paused or held at
+                            // its `~/run_until`): an operator's call is answered now and acts
+                            // from the next tick (a held simulator waits for the answer).
+                            operator.serve(&ros, &mut bridge);
                             if pending.is_none()
                                 && let Some(link) = &link
                                 && let Err(e) = link.resend()

@@ -23,6 +23,12 @@
 //!   50 ms, the servos hold their targets), `false` lets it run on. With `start_paused` the
 //!   simulation waits at t = 0 for the first `false` (`biped walk --composed` starts it so,
 //!   then releases it once the walk command is in).
+//! - with `wait_for_run_until`, reads `~/run_until` (rosgraph_msgs/msg/Clock, latched): the
+//!   simulation steps only while t is before the newest time received (as Gazebo's
+//!   `run_to_sim_time`), waiting at t = 0 for the first; held there, `/clock` and the states
+//!   are sent again every 50 ms, and the nodes serve their services at those repeats.
+//!   `biped walk --estop-at`/`--pause-at` holds simulated time so while its service calls
+//!   are answered: each stop lands at the same simulated instant however loaded the machine.
 //!
 //! Time: with `lockstep` (default) the simulation steps to t + 1/clock_rate_hz only once the
 //! joint_bridge has answered tick t (a `sim/joint_commands` stamped t or later; while waiting,
@@ -37,7 +43,7 @@
 //! `joint_map_file` (a MuJoCo scene of the robot and its map to the URDF's names, instead of
 //! building the simulation from the URDF; the scene then owns its physics and servos), `lockstep`
 //! (true), `real_time_factor` (1.0), `clock_rate_hz` (100), `world_frame` (`world`),
-//! `start_paused` (false), and the
+//! `start_paused` (false), `wait_for_run_until` (false), and the
 //! simulator settings of [`sim_bridge::SimConfig`] (`kp_nm_per_rad`, `kv_nm_s_per_rad`,
 //! `torque_limit_nm` (0 = each joint's URDF effort), `armature_kg_m2`, `timestep_s`,
 //! `friction`, `fall_tilt_deg`, `fall_height_drop_m`). The robot starts standing on the floor
@@ -69,7 +75,7 @@ const SIM_PARAMS: [&str; 8] = [
     "fall_tilt_deg",
     "fall_height_drop_m",
 ];
-const NODE_PARAMS: [&str; 9] = [
+const NODE_PARAMS: [&str; 10] = [
     "robot_description_file",
     "leg_map_file",
     "mjcf_file",
@@ -79,6 +85,7 @@ const NODE_PARAMS: [&str; 9] = [
     "clock_rate_hz",
     "world_frame",
     "start_paused",
+    "wait_for_run_until",
 ];
 
 /// The simulator settings from the node's parameters (defaults: [`SimConfig::default`]).
@@ -282,6 +289,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let rate_hz = setup.f64_param("clock_rate_hz", 100.0)?;
     let world_frame = setup.str_param("world_frame", "world")?;
     let mut paused = setup.bool_param("start_paused", false)?;
+    let gated = setup.bool_param("wait_for_run_until", false)?;
     if !(rtf.is_finite() && (0.0..=1000.0).contains(&rtf)) {
         anyhow::bail!(
             "parameter `real_time_factor` = {rtf} is out of range [0, 1000] (0 = as fast as possible)"
@@ -360,6 +368,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
             ParameterValue::String(world_frame.clone()),
         ),
         ("start_paused".into(), ParameterValue::Boolean(paused)),
+        ("wait_for_run_until".into(), ParameterValue::Boolean(gated)),
     ]);
     for (k, v) in [
         ("kp_nm_per_rad", cfg.kp_nm_per_rad),
@@ -382,6 +391,13 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let stop = host.stop_flag();
     let commands = ros.subscription::<JointState>("sim/joint_commands")?;
     let pause_srv = ros.service::<SetBool>("~/pause")?;
+    // Latched: the newest bound holds for a peer that joins late, and a bound sent before
+    // this node started is not lost.
+    let run_until = if gated {
+        Some(ros.latched_subscription::<Clock>("~/run_until")?)
+    } else {
+        None
+    };
     let out = Outputs {
         joint_states: ros.publisher::<JointState>("joint_states")?,
         base_pose: ros.publisher::<PoseStamped>("sim/base_pose")?,
@@ -434,6 +450,9 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let mut unknown_reported = std::collections::HashSet::new();
     let mut last_publish = Instant::now();
     let mut inbox: Option<JointState> = None;
+    // With `wait_for_run_until`: the simulation steps only while t is before this (ns);
+    // before the first `~/run_until`, it waits at t = 0.
+    let mut run_until_ns = if gated { 0 } else { i64::MAX };
     // The wall time of simulated time 0 at the pace; moved later after a stall.
     let mut wall0 = Instant::now();
     out.publish(&ros, &sim, Time::from_nanos(t_ns));
@@ -463,6 +482,10 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     ros.error(&format!("~/pause: answer not sent: {e:?}"));
                 }
             }
+            while let Some(Ok(Some((c, _)))) = run_until.as_ref().map(|s| s.take()) {
+                run_until_ns = c.clock.to_nanos();
+            }
+            let held = t_ns >= run_until_ns;
             // Commands: the newest targets win; names the robot lacks are reported once.
             let mut batch: Vec<JointState> = inbox.take().into_iter().collect();
             while let Ok(Some((cmd, _))) = commands.take() {
@@ -511,7 +534,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
             let answered = !lockstep || newest_answer_ns >= t_ns;
             let due = rtf == 0.0
                 || wall0.elapsed().as_secs_f64() * rtf >= (t_ns + period_ns) as f64 * 1e-9;
-            if answered && due && !paused {
+            if answered && due && !paused && !held {
                 sim.physics_steps(steps_per_tick)?;
                 t_ns += period_ns;
                 if rtf > 0.0 {
@@ -532,14 +555,15 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 }
                 continue;
             }
-            if (!answered || paused) && last_publish.elapsed() >= Duration::from_millis(50) {
-                // Still waiting for tick t's answer, or paused: say t again (a late peer
-                // catches up).
+            if (!answered || paused || held) && last_publish.elapsed() >= Duration::from_millis(50)
+            {
+                // Still waiting for tick t's answer, paused or held at `~/run_until`: say t
+                // again (a late peer catches up; a node serves its services at a repeat).
                 out.publish(&ros, &sim, Time::from_nanos(t_ns));
                 last_publish = Instant::now();
             }
             // Wait for a command, or for the wall clock when pacing.
-            let wait = if answered && !paused {
+            let wait = if answered && !paused && !held {
                 Duration::from_secs_f64(
                     ((t_ns + period_ns) as f64 * 1e-9 / rtf.max(1e-9)
                         - wall0.elapsed().as_secs_f64())
@@ -553,6 +577,18 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 .or(async {
                     smol::Timer::after(wait).await;
                     None
+                })
+                .or(async {
+                    // Held: a new bound wakes the loop at once.
+                    match (&run_until, held) {
+                        (Some(sub), true) => {
+                            if let Ok((c, _)) = sub.async_take().await {
+                                run_until_ns = c.clock.to_nanos();
+                            }
+                            None
+                        }
+                        _ => std::future::pending().await,
+                    }
                 })
                 .await;
         }
