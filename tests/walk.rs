@@ -384,6 +384,58 @@ fn bad_arguments_are_refused_by_name() {
     );
 }
 
+/// Gait parameters the planner refuses. Out of its bounds (a step longer than the legs
+/// reach): refused naming it before anything starts. Within them but too fast for the
+/// joints (a 0.12 s step): `biped walk` finds it in its own plan, built while the fleet
+/// starts, fails naming the duration and the joint, and stops the nodes it started: none
+/// is left running.
+#[test]
+fn a_refused_plan_fails_the_walk_naming_the_parameter_and_leaves_no_node_running() {
+    let out = out_dir("refused-plan");
+    std::fs::create_dir_all(&out).unwrap();
+    let params = out.join("refused.yaml");
+    for (value, says, starts) in [
+        ("step_length_m: 0.5", "`step_length_m` = 0.5", false),
+        ("step_duration_s: 0.12", "step 0.12 s", true),
+    ] {
+        std::fs::write(
+            &params,
+            format!("gait_planner:\n  ros__parameters:\n    {value}\n"),
+        )
+        .unwrap();
+        let walk_dir = out.join("walk");
+        let run = walk(
+            212,
+            &walk_dir,
+            &["--steps", "4", "--params", params.to_str().unwrap()],
+        );
+        let (stdout, stderr) = (
+            String::from_utf8_lossy(&run.stdout),
+            String::from_utf8_lossy(&run.stderr),
+        );
+        assert!(!run.status.success(), "{value}: {stderr}");
+        assert!(stderr.contains(says), "{value}: {stderr}");
+        assert_eq!(
+            stdout.contains("started gait_planner"),
+            starts,
+            "{value}: {stdout}"
+        );
+        if starts {
+            assert!(stderr.contains("rad/s"), "{value}: {stderr}");
+        }
+        // Every node was started with its log folder inside `walk_dir`: none is left.
+        let walk_dir = walk_dir.display().to_string();
+        let left: Vec<String> = std::fs::read_dir("/proc")
+            .unwrap()
+            .filter_map(|e| std::fs::read(e.ok()?.path().join("cmdline")).ok())
+            .map(|c| String::from_utf8_lossy(&c).replace('\0', " "))
+            .filter(|c| c.contains(&walk_dir))
+            .collect();
+        assert!(left.is_empty(), "{value}: left running: {left:?}");
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 /// A robot from an MJCF scene written for the tests (other names, its own contacts), mapped
 /// to the URDF's joints, walks through the whole fleet.
 #[test]

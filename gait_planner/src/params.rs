@@ -300,6 +300,26 @@ impl GaitParams {
         .contains(&0.0)
     }
 
+    /// These parameters with the durations left at 0 (auto) at the timing search's
+    /// reference timing.
+    fn at_reference_timing(&self) -> GaitParams {
+        let pick = |given: f64, auto: f64| if given == 0.0 { auto } else { given };
+        GaitParams {
+            shift_duration_s: pick(self.shift_duration_s, auto::REFERENCE_TIMING_S[0]),
+            step_duration_s: pick(self.step_duration_s, auto::REFERENCE_TIMING_S[1]),
+            crouch_duration_s: pick(self.crouch_duration_s, auto::REFERENCE_TIMING_S[2]),
+            ..self.clone()
+        }
+    }
+
+    /// Every parameter's bounds on `model`, without the timing search (which takes 0.3-1.2
+    /// s): durations left at 0 (auto) are taken at the search's reference timing. [`Self::with_auto_timing`] checks the same first; a caller that
+    /// starts something before the search (`biped walk` starts the fleet) refuses a bad
+    /// value with this before anything starts.
+    pub fn check_bounds(&self, model: &BipedModel) -> Result<(), GaitError> {
+        self.at_reference_timing().resolve(model).map(|_| ())
+    }
+
     /// These parameters with every duration left at 0 set to the fastest the planning checks
     /// allow for `model` ([`crate::timing::fastest_timing`]: joint speed limits, the ZMP
     /// margin, pausing anywhere within `pause_brake_time_s` or
@@ -323,12 +343,7 @@ impl GaitParams {
             self.crouch_duration_s,
         ];
         let pick = |i: usize, auto: f64| if given[i] == 0.0 { auto } else { given[i] };
-        let reference = GaitParams {
-            shift_duration_s: pick(0, auto::REFERENCE_TIMING_S[0]),
-            step_duration_s: pick(1, auto::REFERENCE_TIMING_S[1]),
-            crouch_duration_s: pick(2, auto::REFERENCE_TIMING_S[2]),
-            ..self.clone()
-        };
+        let reference = self.at_reference_timing();
         // Bounds first: a bad value is named as such, not as a failed search.
         reference.resolve(model)?;
         let found = crate::timing::fastest_timing(model, &reference).map_err(|e| {

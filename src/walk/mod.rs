@@ -25,7 +25,7 @@ use biped_msgs::msg::{
     Clock, GaitPhase, JointState, PointStamped, PolygonStamped, PoseStamped, StringMsg, Time,
     WalkCommand,
 };
-use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
+use gait_planner::{GaitParams, GaitPlanner, GaitSample, WalkRequest};
 use node_runtime::DiscoveryRange;
 use smol::future::FutureExt as _;
 
@@ -416,13 +416,23 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         None => GaitParams::default(),
     };
     // The offline plan of the same walk: what the planner node will publish, tick for tick.
-    let mut planner = GaitPlanner::new(model.clone(), params)?;
-    if let Some(v) = o.velocity {
-        // The same conversion the planner node makes of the command's velocity.
-        crate::plan::apply_twist(&mut planner, v)?;
-    }
-    let plan = planner.plan(WalkRequest::Steps(o.steps))?;
-    let plan_duration_s = plan.last().map_or(0.0, |s| s.t_s) - plan.first().map_or(0.0, |s| s.t_s);
+    // Built on another thread while the fleet starts: the planner node runs the same timing
+    // search at its start, and on two cores the two no longer wait for each other (the first
+    // tick comes ~0.6 s sooner). A plan refused here stops the fleet started meanwhile.
+    // A parameter out of its bounds is refused before anything starts.
+    params.check_bounds(&model)?;
+    let planning = {
+        let (model, velocity, steps) = (model.clone(), o.velocity, o.steps);
+        std::thread::spawn(move || -> anyhow::Result<(GaitPlanner, Vec<GaitSample>)> {
+            let mut planner = GaitPlanner::new(model, params)?;
+            if let Some(v) = velocity {
+                // The same conversion the planner node makes of the command's velocity.
+                crate::plan::apply_twist(&mut planner, v)?;
+            }
+            let plan = planner.plan(WalkRequest::Steps(steps))?;
+            Ok((planner, plan))
+        })
+    };
     std::fs::create_dir_all(&o.out)
         .with_context(|| format!("cannot create output folder {}", o.out.display()))?;
 
@@ -522,6 +532,22 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     for node in nodes.into_iter().filter(|n| *n != "sim_bridge") {
         fleet.spawn(node)?;
     }
+    let planned = planning
+        .join()
+        .map_err(|_| anyhow::anyhow!("the walk's offline plan panicked"))
+        .and_then(|p| p);
+    let (planner, plan) = match planned {
+        Ok(p) => p,
+        Err(e) => {
+            // Refused (the planner node refuses it too): nothing left running, the bag closed.
+            fleet.stop(false);
+            if let Some(r) = recording {
+                let _ = r.finish();
+            }
+            return Err(e);
+        }
+    };
+    let plan_duration_s = plan.last().map_or(0.0, |s| s.t_s) - plan.first().map_or(0.0, |s| s.t_s);
 
     let context = node_runtime::context_for(domain, range)?;
     let mut node = node_runtime::create_node(
