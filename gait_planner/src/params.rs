@@ -313,9 +313,10 @@ impl GaitParams {
     }
 
     /// Every parameter's bounds on `model`, without the timing search (which takes 0.3-1.2
-    /// s): durations left at 0 (auto) are taken at the search's reference timing. [`Self::with_auto_timing`] checks the same first; a caller that
-    /// starts something before the search (`biped walk` starts the fleet) refuses a bad
-    /// value with this before anything starts.
+    /// s): durations left at 0 (auto) are taken at the search's reference timing.
+    /// [`Self::with_auto_timing`] checks the same first; a caller that starts something
+    /// before the search (`biped walk` starts the fleet) refuses a bad value with this
+    /// before anything starts.
     pub fn check_bounds(&self, model: &BipedModel) -> Result<(), GaitError> {
         self.at_reference_timing().resolve(model).map(|_| ())
     }

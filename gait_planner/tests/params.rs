@@ -245,3 +245,27 @@ fn written_parameters_read_back_the_same() {
     );
     assert_eq!(GaitParams::from_ros_yaml_str(&text).unwrap(), p);
 }
+
+/// `check_bounds` names a value out of its bounds without running the timing search; a
+/// duration within its bounds but too fast for the joints passes it and is refused by the
+/// planner's own checks (which `biped walk` runs while its fleet starts).
+#[test]
+fn bounds_are_checked_without_the_timing_search() {
+    let m = default_model();
+    GaitParams::default().check_bounds(&m).unwrap();
+    let long = GaitParams {
+        step_length_m: 0.5,
+        ..GaitParams::default()
+    };
+    let e = long.check_bounds(&m).unwrap_err().to_string();
+    assert!(e.contains("`step_length_m` = 0.5"), "{e}");
+    let fast = GaitParams {
+        step_duration_s: 0.12,
+        ..GaitParams::default()
+    };
+    fast.check_bounds(&m).unwrap();
+    let e = gait_planner::GaitPlanner::new(m, fast)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("rad/s"), "{e}");
+}
