@@ -290,6 +290,12 @@ fn held_ns(rec: &Recording) -> i64 {
         .sum()
 }
 
+/// When the stop held now is released (ns): [`ESTOP_HOLD_S`] after its answer.
+fn release_ns(rec: &Recording) -> i64 {
+    let since = rec.stops.last().and_then(|e| e.answered_ns);
+    since.map_or(rec.clock_ns, |s| s + (ESTOP_HOLD_S * 1e9).round() as i64)
+}
+
 /// Asks a stop at each instant and its release [`ESTOP_HOLD_S`] after its answer. The
 /// simulator (`wait_for_run_until`) runs only to the next of these instants, on
 /// `/sim_bridge/run_until`, and waits there while a call is out: each call goes at the first
@@ -319,10 +325,7 @@ impl StopDriver {
         let held_ns = held_ns(rec);
         match self.state {
             StopState::Idle => self.at_ns.front().map_or(i64::MAX, |t| t + held_ns),
-            StopState::Holding => {
-                let since = rec.stops.last().and_then(|e| e.answered_ns);
-                since.map_or(rec.clock_ns, |s| s + (ESTOP_HOLD_S * 1e9).round() as i64)
-            }
+            StopState::Holding => release_ns(rec),
             StopState::Asked(_) | StopState::Releasing(_) => rec.clock_ns,
         }
     }
@@ -378,8 +381,7 @@ impl StopDriver {
                 }
             }
             StopState::Holding => {
-                let since = rec.stops.last().and_then(|e| e.answered_ns).unwrap_or(now);
-                if tick_done && now >= since + (ESTOP_HOLD_S * 1e9).round() as i64 {
+                if tick_done && now >= release_ns(rec) {
                     self.state = StopState::Releasing(self.clients.call(true)?);
                 }
             }
