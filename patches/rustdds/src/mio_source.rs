@@ -30,6 +30,10 @@ macro_rules! socketpair_bridge {
         // The sending end, for the one byte that tells a new registration about what
         // was sent before it.
         kick: Sender,
+        // How many drains read the socket (tests: a drain with nothing written reads
+        // nothing).
+        #[cfg(test)]
+        pub(super) reads: std::sync::atomic::AtomicUsize,
       }
 
       // Writes a byte for each event, but only while the Source is registered with a
@@ -51,6 +55,8 @@ macro_rules! socketpair_bridge {
           Source {
             rec: Mutex::new(rec),
             kick: sender.clone(),
+            #[cfg(test)]
+            reads: std::sync::atomic::AtomicUsize::new(0),
           },
           sender,
         )
@@ -106,7 +112,15 @@ macro_rules! socketpair_bridge {
       }
 
       impl Source {
+        // Nothing is written while no poll has the source (`Sender::send`), so a drain
+        // then has nothing to read: no system call. The bytes of a registration that
+        // ended stay until the next one, whose first poll reads them with its own.
         pub fn drain(&self) {
+          if !self.kick.registered.load(Ordering::Acquire) {
+            return;
+          }
+          #[cfg(test)]
+          self.reads.fetch_add(1, Ordering::Relaxed);
           let mut buf = Vec::with_capacity(16);
           match self.rec.lock().unwrap().read_to_end(&mut buf) {
             Ok(_) => (),
@@ -388,6 +402,41 @@ mod tests {
       source.mio1.pending_bytes(),
       0,
       "written after deregistering"
+    );
+  }
+
+  // A reader takes with `drain_read_notifications` before every take; with no poll on
+  // its channel (ros2-client, the plain API) that drain reads nothing and makes no system
+  // call. Once registered, it empties the channel as before.
+  #[test]
+  fn a_drain_reads_the_channel_only_while_it_is_registered() {
+    use std::sync::atomic::Ordering;
+    let (mut source, sender) = make_poll_channel().unwrap();
+    for _ in 0..3 {
+      sender.send();
+      source.drain();
+    }
+    assert_eq!(
+      source.mio1.reads.load(Ordering::Relaxed),
+      0,
+      "drains of an unregistered channel read its socket"
+    );
+
+    let poll = mio1::Poll::new().unwrap();
+    mio1::event::Source::register(
+      &mut source,
+      poll.registry(),
+      mio1::Token(7),
+      mio1::Interest::READABLE,
+    )
+    .unwrap();
+    sender.send();
+    source.drain();
+    assert_eq!(source.mio1.reads.load(Ordering::Relaxed), 1);
+    assert_eq!(
+      source.mio1.pending_bytes(),
+      0,
+      "a drain while registered leaves bytes"
     );
   }
 }

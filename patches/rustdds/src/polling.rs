@@ -10,7 +10,10 @@
 
 use std::{
   collections::BTreeMap,
-  sync::{mpsc, Arc, OnceLock},
+  sync::{
+    atomic::{AtomicBool, Ordering},
+    mpsc, Arc, OnceLock,
+  },
   time::{Duration, Instant},
 };
 
@@ -21,16 +24,32 @@ use crate::structure::guid::EntityId;
 /// One waker for one `Poll`. Share clones freely. `wake` before [`install`](Self::install)
 /// is a no-op; the event loop drains its queues once after installing so anything
 /// enqueued earlier is still observed.
+///
+/// Wakes are coalesced: between one [`rearm`](Self::rearm) of the loop and the next,
+/// only the first `wake` writes to the poll's waker (a system call, and a wake-up of the
+/// loop's thread); the others find the loop already due to drain what they enqueued.
 #[derive(Clone)]
 pub(crate) struct LoopWaker {
   slot: Arc<OnceLock<Waker>>,
+  // Set by the wake that wrote to the waker, cleared by `rearm`.
+  pending: Arc<AtomicBool>,
 }
 
 impl LoopWaker {
   pub(crate) fn new() -> Self {
     Self {
       slot: Arc::new(OnceLock::new()),
+      pending: Arc::new(AtomicBool::new(false)),
     }
+  }
+
+  /// The loop calls this after each poll returns and before it drains all its queues
+  /// and ready lists: a wake after it writes to the waker again, and what was enqueued
+  /// before it (its wake coalesced into an earlier one) is in the drain that follows.
+  /// The swap pairs with the one in `wake`: a sender that found `pending` set had
+  /// enqueued before this clear, so the drain sees its item.
+  pub(crate) fn rearm(&self) {
+    self.pending.swap(false, Ordering::AcqRel);
   }
 
   /// Register the single waker of `poll` under `token`. Debug builds assert this
@@ -45,8 +64,12 @@ impl LoopWaker {
 
   pub(crate) fn wake(&self) {
     if let Some(waker) = self.slot.get() {
+      if self.pending.swap(true, Ordering::AcqRel) {
+        return;
+      }
       if let Err(e) = waker.wake() {
         log::debug!("LoopWaker::wake: {e}");
+        self.pending.store(false, Ordering::Release);
       }
     }
   }
@@ -332,5 +355,95 @@ pub(crate) fn timeout_until(deadline: Option<Instant>, cap: Duration) -> Duratio
       }
     }
     None => cap,
+  }
+}
+
+#[cfg(test)]
+mod tests {
+  use std::{thread, time::Duration};
+
+  use mio1::{Events, Poll, Token};
+
+  use super::*;
+
+  const WAKE: Token = Token(1);
+
+  // True if `poll` reports the waker within `timeout`.
+  fn woken(poll: &mut Poll, events: &mut Events, timeout: Duration) -> bool {
+    poll.poll(events, Some(timeout)).unwrap();
+    events.iter().any(|e| e.token() == WAKE)
+  }
+
+  // Between two rearms of the loop only the first wake writes to the waker: the loop,
+  // already due to drain, is not woken again for the others.
+  #[test]
+  fn wakes_between_two_rearms_write_to_the_waker_once() {
+    let mut poll = Poll::new().unwrap();
+    let mut events = Events::with_capacity(4);
+    let waker = LoopWaker::new();
+    waker.install(&poll, WAKE).unwrap();
+
+    waker.wake();
+    assert!(woken(&mut poll, &mut events, Duration::from_secs(5)));
+    // The waker is edge-triggered: a write now would be reported by the next poll.
+    waker.wake();
+    waker.wake();
+    assert!(
+      !woken(&mut poll, &mut events, Duration::ZERO),
+      "a wake before the loop rearmed wrote to the waker"
+    );
+
+    waker.rearm();
+    waker.wake();
+    assert!(
+      woken(&mut poll, &mut events, Duration::from_secs(5)),
+      "a wake after the rearm was lost"
+    );
+  }
+
+  // A loop that rearms before each drain loses nothing that senders on other threads
+  // enqueue and wake for, however their wakes fall against its rearms.
+  #[test]
+  fn a_loop_that_rearms_before_it_drains_receives_every_item() {
+    const SENDERS: usize = 2;
+    const ITEMS: usize = 20_000;
+    let mut poll = Poll::new().unwrap();
+    let mut events = Events::with_capacity(4);
+    let waker = LoopWaker::new();
+    waker.install(&poll, WAKE).unwrap();
+    let (tx, rx) = ready_channel::<usize>(&waker);
+
+    let senders: Vec<_> = (0..SENDERS)
+      .map(|_| {
+        let tx = tx.clone();
+        thread::spawn(move || {
+          for i in 0..ITEMS {
+            tx.notify(i);
+            if i % 64 == 0 {
+              thread::yield_now();
+            }
+          }
+        })
+      })
+      .collect();
+
+    let mut received = 0;
+    while received < SENDERS * ITEMS {
+      // A lost wake leaves items queued and the poll asleep until this timeout.
+      assert!(
+        woken(&mut poll, &mut events, Duration::from_secs(60)),
+        "{} of {} items received, then no wake",
+        received,
+        SENDERS * ITEMS
+      );
+      waker.rearm();
+      while rx.rx.try_recv().is_ok() {
+        received += 1;
+      }
+    }
+    for s in senders {
+      s.join().unwrap();
+    }
+    assert_eq!(received, SENDERS * ITEMS);
   }
 }

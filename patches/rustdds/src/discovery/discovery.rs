@@ -741,6 +741,8 @@ impl Discovery {
       if events.is_empty() {
         debug!("Discovery event loop idling.");
       }
+      // Every queue on the waker is drained below: a wake from here on writes to it.
+      self.waker.rearm();
 
       // The waker token only means "drain". Commands, liveness and reader-sample
       // tokens are queued; deadlines are read from the timer. Handling the

@@ -389,6 +389,8 @@ impl DPEventLoop {
         }
       }
 
+      // From here a wake writes to the waker again; what came before is drained now.
+      ev_wrapper.waker.rearm();
       ev_wrapper.drain_timers(preparing_to_stop);
       if ev_wrapper.drain_queues(
         &mut readers_to_remove,

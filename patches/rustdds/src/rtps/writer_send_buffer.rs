@@ -4,7 +4,7 @@ use std::{
   net::{SocketAddr, UdpSocket},
   sync::{
     atomic::{AtomicI32, Ordering},
-    Arc, Condvar, Mutex,
+    Arc, Condvar, Mutex, MutexGuard,
   },
   time::{Duration as StdDuration, Instant},
 };
@@ -94,6 +94,12 @@ struct Inner {
   // Wakers of async producers / ack-waiters parked because the window was full
   // or acknowledgements were still pending. Drained (woken) on any advance.
   wakers: Vec<Waker>,
+  // Threads blocked on `progress` (counted under this lock): with none, an advance
+  // skips the notify, a system call on every acknowledgement otherwise.
+  blocked_threads: usize,
+  // How many times `progress` was notified (tests).
+  #[cfg(test)]
+  notified: usize,
 
   // Set by the Writer while every matched reader is reached by one unicast
   // datagram: the writing thread then sends a fresh sample itself.
@@ -187,6 +193,9 @@ impl WriterSendBuffer {
           sent_frontier: SequenceNumber::new(0),
           max_retain: max_retain.max(1),
           wakers: Vec::new(),
+          blocked_threads: 0,
+          #[cfg(test)]
+          notified: 0,
           direct: None,
         }),
         progress: Condvar::new(),
@@ -244,7 +253,29 @@ impl WriterSendBuffer {
     for w in inner.wakers.drain(..) {
       w.wake();
     }
-    progress.notify_all();
+    if inner.blocked_threads > 0 {
+      progress.notify_all();
+      #[cfg(test)]
+      {
+        inner.notified += 1;
+      }
+    }
+  }
+
+  // Blocks on `progress` for up to `timeout` (`None`: until notified), counted in
+  // `blocked_threads` so that `wake_all` knows to notify.
+  fn wait_for_progress<'a>(
+    shared: &'a Shared,
+    mut inner: MutexGuard<'a, Inner>,
+    timeout: Option<StdDuration>,
+  ) -> MutexGuard<'a, Inner> {
+    inner.blocked_threads += 1;
+    let mut inner = match timeout {
+      None => shared.progress.wait(inner).unwrap(),
+      Some(timeout) => shared.progress.wait_timeout(inner, timeout).unwrap().0,
+    };
+    inner.blocked_threads -= 1;
+    inner
   }
 
   // --- producer side ---
@@ -278,16 +309,14 @@ impl WriterSendBuffer {
       // Window full: wait for an acknowledgement to free up space.
       match deadline {
         None => {
-          inner = shared.progress.wait(inner).unwrap();
+          inner = Self::wait_for_progress(shared, inner, None);
         }
         Some(deadline) => {
           let now = Instant::now();
           if now >= deadline {
             return Admission::WouldBlock;
           }
-          let (guard, _timeout_result) =
-            shared.progress.wait_timeout(inner, deadline - now).unwrap();
-          inner = guard;
+          inner = Self::wait_for_progress(shared, inner, Some(deadline - now));
         }
       }
     }
@@ -555,8 +584,7 @@ impl WriterSendBuffer {
       if now >= deadline {
         return false;
       }
-      let (guard, _to) = shared.progress.wait_timeout(inner, deadline - now).unwrap();
-      inner = guard;
+      inner = Self::wait_for_progress(shared, inner, Some(deadline - now));
     }
   }
 
@@ -975,5 +1003,63 @@ mod tests {
       assert!(admit_now(&buf, WriteOptions::default()));
     }
     assert_eq!(buf.retained_len(), max_retain + 10);
+  }
+
+  // An acknowledgement notifies the condition variable (a system call) only when a
+  // thread is blocked on it, and then wakes that thread: a producer waiting for room in
+  // the window, and one waiting for its samples to be acknowledged.
+  #[test]
+  fn an_acknowledgement_notifies_only_while_a_thread_is_blocked_and_wakes_it() {
+    let buf = WriterSendBuffer::new(
+      GUID::GUID_UNKNOWN,
+      "t".to_string(),
+      /* reliable_writer */ true,
+      /* is_builtin */ false,
+      /* volatile */ true,
+      /* window_limit */ 2,
+      /* backlog_limit */ 1000,
+      /* max_retain */ 2,
+    );
+    let notified = |buf: &WriterSendBuffer| buf.shared.inner.lock().unwrap().notified;
+    let blocked = |buf: &WriterSendBuffer| buf.shared.inner.lock().unwrap().blocked_threads;
+    buf.set_acked_frontier(Some(SequenceNumber::zero()));
+    for acked_before in 2..5 {
+      assert!(admit_now(&buf, WriteOptions::default()));
+      buf.set_acked_frontier(Some(SequenceNumber::new(acked_before)));
+    }
+    assert_eq!(notified(&buf), 0, "notified with no thread blocked");
+
+    // Seq 4 and 5 fill the window; the third write blocks until seq 4 is acknowledged.
+    assert!(admit_now(&buf, WriteOptions::default()));
+    assert!(admit_now(&buf, WriteOptions::default()));
+    let producer = {
+      let buf = buf.clone();
+      std::thread::spawn(move || {
+        matches!(
+          buf.admit_blocking(WriteOptions::default(), sample(), None),
+          Admission::Admitted(_)
+        )
+      })
+    };
+    while blocked(&buf) == 0 {
+      std::thread::yield_now();
+    }
+    buf.set_acked_frontier(Some(SequenceNumber::new(5)));
+    assert!(producer.join().unwrap(), "the blocked producer was not admitted");
+    assert_eq!(notified(&buf), 1);
+
+    let waiter = {
+      let buf = buf.clone();
+      std::thread::spawn(move || {
+        buf.wait_for_acked_through(SequenceNumber::new(6), StdDuration::from_secs(600))
+      })
+    };
+    while blocked(&buf) == 0 {
+      std::thread::yield_now();
+    }
+    buf.set_acked_frontier(Some(SequenceNumber::new(7)));
+    assert!(waiter.join().unwrap(), "the waiter was not told of the acknowledgement");
+    assert_eq!(notified(&buf), 2);
+    assert_eq!(blocked(&buf), 0);
   }
 }
