@@ -362,6 +362,17 @@ mod tests {
 
   use super::*;
 
+  // Registers `source` with `poll` for reading, under token 7.
+  fn register(source: &mut PollEventSource, poll: &mio1::Poll) {
+    mio1::event::Source::register(
+      source,
+      poll.registry(),
+      mio1::Token(7),
+      mio1::Interest::READABLE,
+    )
+    .unwrap();
+  }
+
   // A reader's poll channel that no one registers costs nothing per event; one that is
   // registered late still wakes its poll for what came before, and then for every event.
   #[test]
@@ -374,13 +385,7 @@ mod tests {
 
     let mut poll = mio1::Poll::new().unwrap();
     let mut events = mio1::Events::with_capacity(4);
-    mio1::event::Source::register(
-      &mut source,
-      poll.registry(),
-      mio1::Token(7),
-      mio1::Interest::READABLE,
-    )
-    .unwrap();
+    register(&mut source, &poll);
     poll
       .poll(&mut events, Some(Duration::from_secs(1)))
       .unwrap();
@@ -423,13 +428,7 @@ mod tests {
     );
 
     let poll = mio1::Poll::new().unwrap();
-    mio1::event::Source::register(
-      &mut source,
-      poll.registry(),
-      mio1::Token(7),
-      mio1::Interest::READABLE,
-    )
-    .unwrap();
+    register(&mut source, &poll);
     sender.send();
     source.drain();
     assert_eq!(source.mio1.reads.load(Ordering::Relaxed), 1);
