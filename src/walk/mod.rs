@@ -97,6 +97,10 @@ impl WalkOptions {
 /// report measures the first [`report::ESTOP_WINDOW_S`] of it.
 pub const ESTOP_HOLD_S: f64 = 2.5;
 
+/// How long (wall time) the recording waits, once the clock has passed the end, for the
+/// streams the report measures to get there too; then it measures what came, and says so.
+const STREAMS_GRACE: Duration = Duration::from_secs(2);
+
 /// The walk's outcome: the report and the files written.
 #[derive(Debug)]
 pub struct WalkOutcome {
@@ -732,6 +736,8 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         let mut last_clock_wall = Instant::now();
         let mut last_progress_s = -1.0;
         let mut last_resend = Instant::now();
+        // Since when the clock has passed the end while a stream has not (wall time).
+        let mut streams_wait: Option<Instant> = None;
         let end_by_s = o.settle_s
             + plan_duration_s
             + o.tail_s
@@ -782,10 +788,27 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                 last_progress_s = t;
                 println!("  {}", rec.progress_line());
             }
-            if let Some(end_s) = rec.done_at_s(o.tail_s)
-                && t >= end_s
+            if let Some(end_ns) = rec.end_ns(o.tail_s)
+                && rec.clock_ns >= end_ns
             {
-                break;
+                // The clock can overtake the streams it stamps: the report measures every
+                // tick up to the end, so wait for them (in lockstep the simulator runs on
+                // meanwhile, and they come within a few ticks).
+                if rec.received_through(end_ns) {
+                    break;
+                }
+                let waited = *streams_wait.get_or_insert_with(Instant::now);
+                if waited.elapsed() > STREAMS_GRACE {
+                    eprintln!(
+                        "warning: the recording ends at t = {:.2} s without every stream \
+                         there (joint states to {}); the report measures what came",
+                        end_ns as f64 * 1e-9,
+                        rec.states
+                            .last_key_value()
+                            .map_or("none".to_owned(), |(t, _)| format!("{:.2} s", *t as f64 * 1e-9))
+                    );
+                    break;
+                }
             }
             if t > end_by_s {
                 anyhow::bail!(

@@ -167,9 +167,20 @@ impl Recording {
             .map(|t| t + (tail_s * 1e9).round() as i64)
     }
 
-    /// When recording can stop (s).
-    pub fn done_at_s(&self, tail_s: f64) -> Option<f64> {
-        self.end_ns(tail_s).map(|t| t as f64 * 1e-9)
+    /// True once every stream the report measures up to `end_ns` has a sample stamped at
+    /// or after it. Each publisher's samples come in order, so none before it is still on
+    /// its way; the `/clock` that says the simulation got there travels on its own and can
+    /// overtake them (a DDS event loop sends one writer's backlog before the next writer's).
+    pub fn received_through(&self, end_ns: i64) -> bool {
+        fn reached<V>(stream: &BTreeMap<i64, V>, end_ns: i64) -> bool {
+            stream.last_key_value().is_some_and(|(&t, _)| t >= end_ns)
+        }
+        reached(&self.phases, end_ns)
+            && reached(&self.commands, end_ns)
+            && reached(&self.states, end_ns)
+            && reached(&self.base, end_ns)
+            && reached(&self.cop, end_ns)
+            && reached(&self.support, end_ns)
     }
 
     /// One line of progress.
@@ -193,6 +204,39 @@ impl Recording {
 
 #[cfg(test)]
 mod tests {
+    // The recording is complete through a tick only when every measured stream has reached
+    // it: the clock alone, or all streams but one, is not enough.
+    #[test]
+    fn a_recording_is_received_through_a_tick_once_every_stream_reached_it() {
+        use super::{PhaseAt, Recording};
+        use biped_msgs::msg::JointState;
+        use gait_planner::PhaseKind;
+        use nalgebra::Isometry3;
+        let mut rec = Recording {
+            clock_ns: 50,
+            ..Recording::default()
+        };
+        assert!(!rec.received_through(30));
+        for t in [10, 20, 30] {
+            let idle = PhaseAt {
+                kind: PhaseKind::Idle,
+                step_index: 0,
+            };
+            rec.phases.insert(t, idle);
+            rec.commands.insert(t, Vec::new());
+            rec.states.insert(t, JointState::default());
+            rec.base.insert(t, Isometry3::identity());
+            rec.cop.insert(t, [0.0, 0.0]);
+        }
+        rec.support.insert(10, Vec::new());
+        rec.support.insert(20, Vec::new());
+        assert!(!rec.received_through(30), "support stops at 20");
+        assert!(rec.received_through(20));
+        rec.support.insert(40, Vec::new());
+        assert!(rec.received_through(30));
+        assert!(!rec.received_through(31), "phases stop at 30");
+    }
+
     #[test]
     fn the_fall_time_is_read_from_the_report() {
         assert_eq!(
