@@ -573,6 +573,25 @@ impl RosNode {
         Ok(executor)
     }
 
+    /// Answers request `id` of a trigger-like `server` (a `~/pause`) with `said`, a success,
+    /// and logs it; an answer that cannot be sent is logged naming `service`.
+    pub fn answer_said<Q: ros2_client::Message + 'static>(
+        &self,
+        server: &ros2_client::Server<Q, biped_msgs::srv::TriggerResponse>,
+        service: &str,
+        id: ros2_client::RmwRequestId,
+        said: String,
+    ) {
+        self.info(&said);
+        let answer = biped_msgs::srv::TriggerResponse {
+            success: true,
+            message: said,
+        };
+        if let Err(e) = server.send_response(id, answer) {
+            self.error(&format!("{service}: answer not sent: {e:?}"));
+        }
+    }
+
     /// Logs at info.
     pub fn info(&self, msg: &str) {
         self.log.info(&self.node, msg);

@@ -121,15 +121,7 @@ fn serve_pause(
     brake_s: f64,
 ) {
     while let Ok(Some((id, req))) = srv.receive_request() {
-        let said = pause(clock, req.data, brake_s);
-        ros.info(&said);
-        let answer = TriggerResponse {
-            success: true,
-            message: said,
-        };
-        if let Err(e) = srv.send_response(id, answer) {
-            ros.error(&format!("~/pause: answer not sent: {e:?}"));
-        }
+        ros.answer_said(srv, "~/pause", id, pause(clock, req.data, brake_s));
     }
 }
 

@@ -60,7 +60,7 @@ use biped_msgs::msg::{
     Polygon, PolygonStamped, Pose, PoseStamped, StringMsg, TFMessage, Time, Transform,
     TransformStamped,
 };
-use biped_msgs::srv::{SetBool, TriggerResponse};
+use biped_msgs::srv::SetBool;
 use ik_solver::LegRoleMap;
 use node_runtime::{Host, NodeSetup, Publisher, RosNode};
 use ros2_client::ParameterValue;
@@ -473,14 +473,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     (false, false) => format!("already running, t = {:.3} s", t_ns as f64 * 1e-9),
                 };
                 paused = req.data;
-                ros.info(&said);
-                let answer = TriggerResponse {
-                    success: true,
-                    message: said,
-                };
-                if let Err(e) = pause_srv.send_response(id, answer) {
-                    ros.error(&format!("~/pause: answer not sent: {e:?}"));
-                }
+                ros.answer_said(&pause_srv, "~/pause", id, said);
             }
             while let Some(Ok(Some((c, _)))) = run_until.as_ref().map(|s| s.take()) {
                 run_until_ns = c.clock.to_nanos();
