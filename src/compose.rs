@@ -205,7 +205,7 @@ pub fn compose(args: &[String]) -> anyhow::Result<()> {
                     })
                     .detach();
             }
-            smol::block_on(executor.run(async {
+            node_runtime::wait::block_on(executor.run(async {
                 for _ in 0..count {
                     results.extend(done_rx.recv().await.ok());
                 }
@@ -220,8 +220,9 @@ pub fn compose(args: &[String]) -> anyhow::Result<()> {
                     // stack.
                     .stack_size(8 << 20)
                     .spawn(move || {
-                        let _ =
-                            done.send_blocking(smol::block_on(run_to_end(name, run, setup, host)));
+                        let _ = done.send_blocking(node_runtime::wait::block_on(run_to_end(
+                            name, run, setup, host,
+                        )));
                     })
                     .context("cannot start a node's thread")?;
                 threads.push(thread);

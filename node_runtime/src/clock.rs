@@ -66,6 +66,8 @@ pub enum TickSource {
         period_ns: i64,
         /// The last tick's index and `/clock` value (ns).
         last: Option<(u64, i64)>,
+        /// Ends a wait for `/clock` every 100 ms (one timer for all the waits).
+        bound: crate::WaitBound,
     },
 }
 
@@ -94,6 +96,7 @@ impl TickSource {
                 clock: Box::new(ros.best_effort_subscription::<Clock>("/clock")?),
                 period_ns: (1e9 / rate_hz).round() as i64,
                 last: None,
+                bound: crate::WaitBound::every(std::time::Duration::from_millis(100)),
             })
         } else {
             Ok(TickSource::Wall(Ticker::new(rate_hz)))
@@ -105,8 +108,9 @@ impl TickSource {
         matches!(self, TickSource::Sim { .. })
     }
 
-    /// Waits for the next tick. `None` after 100 ms without one (on simulated time, when
-    /// the clock stands still), so the caller can check for shutdown.
+    /// Waits for the next tick. `None` when 100 ms pass without one (on simulated time, when
+    /// the clock stands still; at most 100 ms, one timer kept across the waits), so the
+    /// caller can check for shutdown.
     pub async fn next(&mut self) -> Option<Tick> {
         match self {
             TickSource::Wall(t) => Some(Tick {
@@ -118,14 +122,12 @@ impl TickSource {
                 clock,
                 period_ns,
                 last,
+                bound,
             } => {
-                use smol::future::FutureExt as _;
                 loop {
-                    let msg = async { Some(clock.async_take().await) }.or(async {
-                        smol::Timer::after(std::time::Duration::from_millis(100)).await;
-                        None
-                    });
-                    let Ok((msg, _)) = msg.await? else { continue };
+                    let Ok((msg, _)) = bound.within(clock.async_take()).await? else {
+                        continue;
+                    };
                     let ns = msg.clock.to_nanos();
                     if ns < 0 {
                         continue;

@@ -16,7 +16,8 @@
 //! - [`local`]: in-process delivery between nodes composed in one process;
 //! - [`affinity`]: the `cpu_affinity` parameter, binding a node's process to CPUs;
 //! - [`cpu_latency`]: the `cpu_dma_latency_us` parameter, a CPU latency request held while
-//!   the node's process runs.
+//!   the node's process runs;
+//! - [`wait`]: a bound on a loop's waits for its next message, one timer kept across them.
 //!
 //! ros2-client (pure Rust over RustDDS) underneath; no core crate depends on this one, only
 //! the node binaries (each core crate's `node` feature) and the `biped` command.
@@ -32,6 +33,7 @@ pub mod log;
 pub mod node;
 pub mod params;
 pub mod qos;
+pub mod wait;
 
 pub use affinity::CPU_AFFINITY_PARAM;
 pub use args::{RosArgs, topic_name};
@@ -51,3 +53,4 @@ pub use params::{
     COMMON_PARAMS, ParameterCheck, check_known, from_parameter_value, node_parameters,
     read_at_startup, read_at_startup_only, to_parameter_value,
 };
+pub use wait::WaitBound;

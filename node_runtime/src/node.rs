@@ -210,7 +210,7 @@ pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
             .and_then(|us| us.map(CpuLatencyRequest::hold).transpose())
             .map_err(printed)?;
         let host = Host::process().map_err(printed)?;
-        smol::block_on(run(setup, host)).map_err(|e| format!("{e:#}"))
+        crate::wait::block_on(run(setup, host)).map_err(|e| format!("{e:#}"))
     })();
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -539,21 +539,16 @@ impl RosNode {
         )
     }
 
-    /// The next message of `sub` (topic `topic`), or `None` after `timeout` so that the
-    /// caller can look at its stop flag. An unreadable message is logged, naming the topic,
-    /// and skipped (`None`).
+    /// The next message of `sub` (topic `topic`), or `None` when `bound` fires first so that
+    /// the caller can look at its stop flag. An unreadable message is logged, naming the
+    /// topic, and skipped (`None`).
     pub async fn take_within<M: RosMessageBound>(
         &self,
         sub: &Subscription<M>,
         topic: &str,
-        timeout: std::time::Duration,
+        bound: &mut crate::WaitBound,
     ) -> Option<M> {
-        use smol::future::FutureExt as _;
-        let next = async { Some(sub.async_take().await) }.or(async {
-            smol::Timer::after(timeout).await;
-            None
-        });
-        match next.await? {
+        match bound.within(sub.async_take()).await? {
             Ok((m, _)) => Some(m),
             Err(e) => {
                 self.warn(&format!("{topic}: unreadable message dropped: {e:?}"));

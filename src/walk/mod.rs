@@ -652,7 +652,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     // step of `/clock` since: the tick (a reader may miss a value, never see a shorter one).
     let mut work0: Option<(work::Work, i64)> = None;
     let mut tick_ns: Option<i64> = None;
-    let result: anyhow::Result<()> = smol::block_on(executor.run(async {
+    let result: anyhow::Result<()> = node_runtime::wait::block_on(executor.run(async {
         // 1. The planner listens: send the command, a few times (it ignores repeats of a
         //    stamped command), then start the simulator. Another subscriber of walk_command
         //    (a recorder, a user's tool) can make the count non-zero before the planner's
@@ -743,13 +743,10 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
             + o.tail_s
             + 10.0
             + o.stop_at_s().len() as f64 * (ESTOP_HOLD_S + 5.0);
+        // Deadlines and the fleet are looked at, without a `/clock`, every 200 ms.
+        let mut bound = node_runtime::WaitBound::every(Duration::from_millis(200));
         loop {
-            let got = async { Some(clock.async_take().await) }
-                .or(async {
-                    smol::Timer::after(Duration::from_millis(200)).await;
-                    None
-                })
-                .await;
+            let got = bound.within(clock.async_take()).await;
             if let Some(Ok((c, _))) = got {
                 let ns = c.clock.to_nanos();
                 if first_clock_wall.is_some() && ns > rec.clock_ns {

@@ -97,9 +97,11 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let mut last_report: BTreeMap<String, Instant> = BTreeMap::new();
     executor
         .run(async {
+            // The stop flag is looked at, without a message, every 100 ms.
+            let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
             while !stop.load(Ordering::SeqCst) {
                 let Some(msg) = ros
-                    .take_within(&sub, "gait/ankle_targets", Duration::from_millis(100))
+                    .take_within(&sub, "gait/ankle_targets", &mut bound)
                     .await
                 else {
                     continue;

@@ -100,9 +100,11 @@ async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     ));
 
     executor.run(async {
+        // The stop flag is looked at, without a message, every 100 ms.
+        let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
         while !stop.load(Ordering::SeqCst) {
             let Some(state) = ros
-                .take_within(&sub, "joint_states", Duration::from_millis(100))
+                .take_within(&sub, "joint_states", &mut bound)
                 .await
             else {
                 continue;

@@ -456,6 +456,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     // The wall time of simulated time 0 at the pace; moved later after a stall.
     let mut wall0 = Instant::now();
     out.publish(&ros, &sim, Time::from_nanos(t_ns));
+    let mut bound = node_runtime::WaitBound::every(Duration::from_millis(50));
     let result: anyhow::Result<()> = executor.run(async {
         while !stop.load(Ordering::SeqCst) {
             while let Ok(Some((id, req))) = pause_srv.receive_request() {
@@ -555,20 +556,26 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 out.publish(&ros, &sim, Time::from_nanos(t_ns));
                 last_publish = Instant::now();
             }
-            // Wait for a command, or for the wall clock when pacing.
-            let wait = if answered && !paused && !held {
+            // Wait for a command, or for the wall clock when pacing; otherwise (in lockstep,
+            // for the answer; paused; held) at most 50 ms, on one timer kept across the
+            // ticks (a timer made per tick wakes async-io's reactor every tick).
+            let pace = (rtf > 0.0 && answered && !paused && !held).then(|| {
                 Duration::from_secs_f64(
-                    ((t_ns + period_ns) as f64 * 1e-9 / rtf.max(1e-9)
-                        - wall0.elapsed().as_secs_f64())
-                    .clamp(0.0, 0.05),
+                    ((t_ns + period_ns) as f64 * 1e-9 / rtf - wall0.elapsed().as_secs_f64())
+                        .clamp(0.0, 0.05),
                 )
-            } else {
-                Duration::from_millis(50)
-            };
+            });
             use smol::future::FutureExt as _;
             inbox = async { commands.async_take().await.ok().map(|(cmd, _)| cmd) }
                 .or(async {
-                    smol::Timer::after(wait).await;
+                    match pace {
+                        Some(wait) => {
+                            smol::Timer::after(wait).await;
+                        }
+                        None => {
+                            bound.fired().await;
+                        }
+                    }
                     None
                 })
                 .or(async {
