@@ -52,6 +52,13 @@ pub const HEARTBEAT_PERIOD_SLOW: crate::structure::duration::Duration =
 pub const HEARTBEAT_PERIOD_FAST: crate::structure::duration::Duration =
   crate::structure::duration::Duration::from_millis(100);
 
+// How often a writer sending its fresh samples itself (the direct route of
+// `writer_send_buffer`) asks its readers for an ACKNACK in the HEARTBEAT
+// piggybacked on a sample, at most, unless half its send window is
+// unacknowledged. Within the period the piggybacked HEARTBEAT is final.
+pub const DIRECT_SEND_ACKNACK_REQUEST_PERIOD: std::time::Duration =
+  std::time::Duration::from_millis(100);
+
 // Fallback upper bound on the number of CacheChanges a Writer retains in its
 // history when the Writer QoS does not specify ResourceLimits.max_samples. This
 // is only a memory-safety backstop: for reliable Writers, samples that matched

@@ -17,7 +17,7 @@ use speedy::Endianness;
 
 use crate::{
   dds::{ddsdata::DDSData, with_key::datawriter::WriteOptions},
-  rtps::message::MessageBuilder,
+  rtps::{constant::DIRECT_SEND_ACKNACK_REQUEST_PERIOD, message::MessageBuilder},
   structure::{
     cache_change::CacheChange,
     guid::{EntityId, GUID},
@@ -104,6 +104,33 @@ struct Inner {
   // Set by the Writer while every matched reader is reached by one unicast
   // datagram: the writing thread then sends a fresh sample itself.
   direct: Option<DirectRoute>,
+  // When a directly sent sample last asked its readers for an ACKNACK (its
+  // HEARTBEAT without the final flag). See [`piggyback_asks_for_acknack`].
+  last_acknack_request: Option<Instant>,
+}
+
+/// Whether the HEARTBEAT piggybacked on a directly sent sample asks the readers
+/// to acknowledge (final flag clear), as Cyclone DDS's heartbeat control does:
+/// when no directly sent sample asked within
+/// [`DIRECT_SEND_ACKNACK_REQUEST_PERIOD`] (so a sporadic sample is acknowledged
+/// at once, and a steady flow about once a period), or when half the reliable
+/// send window is unacknowledged (so back-pressure never waits for a periodic
+/// heartbeat). Otherwise the HEARTBEAT is final: a reader that has everything
+/// it announces stays silent, and one that misses a sample still answers with
+/// a NACK at once (RTPS v2.5 8.4.2.3.2), so repair is as prompt as before.
+/// Asking on every sample made every reader answer every sample: one more
+/// datagram, and a wake-up of both participants' event loops, per sample and
+/// reader.
+fn piggyback_asks_for_acknack(
+  last_request: Option<Instant>,
+  now: Instant,
+  unacked: Option<i64>,
+  window_limit: usize,
+) -> bool {
+  let period_over = last_request
+    .is_none_or(|t| now.saturating_duration_since(t) >= DIRECT_SEND_ACKNACK_REQUEST_PERIOD);
+  let half_window = unacked.is_some_and(|n| n.saturating_mul(2) >= window_limit as i64);
+  period_over || half_window
 }
 
 /// How the writing thread can send a fresh sample itself, as the Writer's
@@ -197,6 +224,7 @@ impl WriterSendBuffer {
           #[cfg(test)]
           notified: 0,
           direct: None,
+          last_acknack_request: None,
         }),
         progress: Condvar::new(),
         writer_guid,
@@ -425,7 +453,17 @@ impl WriterSendBuffer {
       route.endianness,
       None,
     );
+    let mut asks_for_acknack = false;
     if let Some(count) = &route.heartbeat_count {
+      let unacked = inner
+        .reliable_readers_present
+        .then(|| i64::from(inner.last_seq) - i64::from(inner.acked_before) + 1);
+      asks_for_acknack = piggyback_asks_for_acknack(
+        inner.last_acknack_request,
+        Instant::now(),
+        unacked,
+        inner.window_limit,
+      );
       builder = builder.heartbeat_msg(
         shared.writer_guid.entity_id,
         inner.first_seq,
@@ -433,7 +471,7 @@ impl WriterSendBuffer {
         count.fetch_add(1, Ordering::SeqCst),
         route.endianness,
         EntityId::UNKNOWN, // to all readers
-        false,             // final_flag: request ACKNACK
+        !asks_for_acknack, // final_flag
         false,             // liveliness_flag
       );
     }
@@ -455,6 +493,9 @@ impl WriterSendBuffer {
       }
     }
     inner.sent_frontier = seq;
+    if asks_for_acknack {
+      inner.last_acknack_request = Some(Instant::now());
+    }
     true
   }
 
@@ -664,6 +705,13 @@ mod tests {
     (buf, reader)
   }
 
+  // Pretends the last ACKNACK request was just made and the period will not
+  // run out during the test, whatever the machine's pauses between sends.
+  fn hold_acknack_period(buf: &WriterSendBuffer) {
+    buf.shared.inner.lock().unwrap().last_acknack_request =
+      Some(Instant::now() + StdDuration::from_secs(3600));
+  }
+
   fn admit(buf: &WriterSendBuffer, payload_len: usize) -> Admitted {
     match buf.admit_blocking(
       WriteOptions::default(),
@@ -678,11 +726,14 @@ mod tests {
     }
   }
 
-  // The DATA sequence numbers and HEARTBEAT (first, last, count) of one
-  // received datagram.
+  // The DATA sequence numbers and HEARTBEAT (first, last, count, final flag)
+  // of one received datagram.
   #[allow(clippy::type_complexity)]
-  fn receive(reader: &UdpSocket) -> (Vec<i64>, Vec<(i64, i64, i32)>) {
-    use crate::{messages::submessages::submessages::WriterSubmessage, rtps::message::Message};
+  fn receive(reader: &UdpSocket) -> (Vec<i64>, Vec<(i64, i64, i32, bool)>) {
+    use crate::{
+      messages::submessages::{submessage_flag::HEARTBEAT_Flags, submessages::WriterSubmessage},
+      rtps::message::Message,
+    };
     let mut datagram = [0u8; 2048];
     let n = reader.recv(&mut datagram).expect("a datagram");
     let message =
@@ -693,8 +744,13 @@ mod tests {
         crate::rtps::submessage::SubmessageBody::Writer(WriterSubmessage::Data(d, _)) => {
           data.push(i64::from(d.writer_sn));
         }
-        crate::rtps::submessage::SubmessageBody::Writer(WriterSubmessage::Heartbeat(h, _)) => {
-          heartbeats.push((i64::from(h.first_sn), i64::from(h.last_sn), h.count));
+        crate::rtps::submessage::SubmessageBody::Writer(WriterSubmessage::Heartbeat(h, flags)) => {
+          heartbeats.push((
+            i64::from(h.first_sn),
+            i64::from(h.last_sn),
+            h.count,
+            flags.contains(HEARTBEAT_Flags::Final),
+          ));
         }
         _ => {}
       }
@@ -704,16 +760,18 @@ mod tests {
 
   // With a direct route the writing thread sends the sample itself, DATA with
   // a HEARTBEAT for reliable writers, and marks it sent, so the event loop
-  // (which is not woken) sends nothing more.
+  // (which is not woken) sends nothing more. The first HEARTBEAT asks for an
+  // ACKNACK, the one right after it does not (final flag).
   #[test]
   fn a_sample_is_sent_by_the_writing_thread_on_a_direct_route() {
     let (buf, reader) = buffer_with_direct_route(true);
     let first = admit(&buf, 8);
     assert!(first.sent_directly, "{first:?}");
-    assert_eq!(receive(&reader), (vec![1], vec![(1, 1, 7)]));
+    assert_eq!(receive(&reader), (vec![1], vec![(1, 1, 7, false)]));
+    hold_acknack_period(&buf);
     let second = admit(&buf, 8);
     assert!(second.sent_directly, "{second:?}");
-    assert_eq!(receive(&reader), (vec![2], vec![(1, 2, 8)]));
+    assert_eq!(receive(&reader), (vec![2], vec![(1, 2, 8, true)]));
     assert_eq!(
       buf.last_and_sent_sequence_numbers(),
       (SequenceNumber::new(2), SequenceNumber::new(2))
@@ -726,6 +784,61 @@ mod tests {
       (vec![1], vec![]),
       "best effort: no HEARTBEAT"
     );
+  }
+
+  // A directly sent sample asks its readers for an ACKNACK (HEARTBEAT without
+  // the final flag) when none did for a period, or when half the send window
+  // is unacknowledged; otherwise its HEARTBEAT is final, so readers that have
+  // everything do not answer every sample.
+  #[test]
+  fn a_direct_send_asks_for_an_acknack_once_a_period_or_when_half_the_window_is_unacknowledged() {
+    let final_flags = |reader: &UdpSocket, n: usize| -> Vec<bool> {
+      (0..n).map(|_| receive(reader).1[0].3).collect()
+    };
+    let (buf, reader) = buffer_with_direct_route(true);
+    let before = Instant::now();
+    assert!(admit(&buf, 8).sent_directly);
+    let asked = buf.shared.inner.lock().unwrap().last_acknack_request;
+    assert!(asked.is_some_and(|t| t >= before), "{asked:?}");
+    hold_acknack_period(&buf);
+    for _ in 0..2 {
+      assert!(admit(&buf, 8).sent_directly);
+    }
+    assert_eq!(final_flags(&reader, 3), [false, true, true]);
+    // A period after the last request, the next sample asks again.
+    buf.shared.inner.lock().unwrap().last_acknack_request =
+      Some(Instant::now() - DIRECT_SEND_ACKNACK_REQUEST_PERIOD);
+    assert!(admit(&buf, 8).sent_directly);
+    hold_acknack_period(&buf);
+    assert!(admit(&buf, 8).sent_directly);
+    assert_eq!(final_flags(&reader, 2), [false, true]);
+
+    // A reader acknowledged samples 1..=4 (window 100): samples 6..=53 leave up
+    // to 49 unacknowledged (5..=53) and ask nothing; sample 54 makes it 50 and
+    // asks; so does every one after it until an ACKNACK moves the frontier.
+    buf.set_acked_frontier(Some(SequenceNumber::new(5)));
+    for _ in 6..=55 {
+      assert!(admit(&buf, 8).sent_directly);
+    }
+    let flags = final_flags(&reader, 50);
+    assert!(flags[..48].iter().all(|&f| f), "{flags:?}");
+    assert_eq!(flags[48..], [false, false], "{flags:?}");
+    buf.set_acked_frontier(Some(SequenceNumber::new(56)));
+    hold_acknack_period(&buf);
+    assert!(admit(&buf, 8).sent_directly);
+    assert_eq!(final_flags(&reader, 1), [true]);
+  }
+
+  #[test]
+  fn an_acknack_is_asked_for_after_a_period_or_at_half_the_window() {
+    let t0 = Instant::now();
+    let p = DIRECT_SEND_ACKNACK_REQUEST_PERIOD;
+    assert!(piggyback_asks_for_acknack(None, t0, None, 100));
+    assert!(!piggyback_asks_for_acknack(Some(t0), t0 + p / 2, None, 100));
+    assert!(piggyback_asks_for_acknack(Some(t0), t0 + p, None, 100));
+    assert!(!piggyback_asks_for_acknack(Some(t0), t0, Some(49), 100));
+    assert!(piggyback_asks_for_acknack(Some(t0), t0, Some(50), 100));
+    assert!(piggyback_asks_for_acknack(Some(t0), t0, Some(1), 1));
   }
 
   // A sample is sent directly only when everything before it is on the wire
