@@ -55,7 +55,6 @@ use ik_solver::BipedModel;
 use node_runtime::RosArgs;
 use ros2_client::qos::History;
 use ros2_client::{NodeName, NodeOptions, Publisher};
-use smol::future::FutureExt as _;
 
 /// Set in the re-executed process, inside the private network namespace.
 /// Our own DDS domain (the namespace is private anyway).
@@ -571,19 +570,17 @@ fn session(
     let spinner = node.spinner().map_err(|e| dds("spinner")(&e))?;
     let spin_thread = std::thread::spawn(move || smol::block_on(spinner.spin()));
 
-    // The joint bridge's end: time-stamps each arrival as soon as it is taken.
+    // The joint bridge's end: time-stamps each arrival as soon as it is taken. It waits as
+    // the fleet's nodes do (node_runtime::wait): parked, one timer for the stop check.
     let stop = Arc::new(AtomicBool::new(false));
     let (tx, rx) = mpsc::channel::<Arrival>();
     let receiver = {
         let stop = stop.clone();
         std::thread::spawn(move || {
-            smol::block_on(async {
+            node_runtime::wait::block_on(async {
+                let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
                 while !stop.load(Ordering::SeqCst) {
-                    let next = async { Some(subscription.async_take().await) }.or(async {
-                        smol::Timer::after(Duration::from_millis(100)).await;
-                        None
-                    });
-                    match next.await {
+                    match bound.within(subscription.async_take()).await {
                         Some(Ok((msg, _))) => {
                             let arrived_ns = clock.now_ns();
                             let _ = tx.send(Arrival {
