@@ -29,7 +29,7 @@ impl Ticker {
         let due = self.start + self.period * (self.k as u32);
         let now = std::time::Instant::now();
         if due > now {
-            smol::Timer::at(due).await;
+            crate::wait::sleep_until(due).await;
         } else if now - due > self.period * 10 {
             self.start = now - self.period * (self.k as u32);
         }
