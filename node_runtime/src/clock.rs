@@ -66,7 +66,7 @@ pub enum TickSource {
         period_ns: i64,
         /// The last tick's index and `/clock` value (ns).
         last: Option<(u64, i64)>,
-        /// Ends a wait for `/clock` every 100 ms (one timer for all the waits).
+        /// Ends a wait for `/clock` every 100 ms (one deadline kept across the waits).
         bound: crate::WaitBound,
     },
 }
@@ -109,7 +109,7 @@ impl TickSource {
     }
 
     /// Waits for the next tick. `None` when 100 ms pass without one (on simulated time, when
-    /// the clock stands still; at most 100 ms, one timer kept across the waits), so the
+    /// the clock stands still; at most 100 ms, one deadline kept across the waits), so the
     /// caller can check for shutdown.
     pub async fn next(&mut self) -> Option<Tick> {
         match self {

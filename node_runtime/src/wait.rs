@@ -65,8 +65,8 @@ pub fn block_on<T>(future: impl Future<Output = T>) -> T {
         let (due, next) = DEADLINES.with(|d| {
             let mut d = d.borrow_mut();
             let list = d.get_or_insert_with(Vec::new);
-            let (due, left): (Vec<_>, Vec<_>) = list.drain(..).partition(|(t, _)| *t <= now);
-            *list = left;
+            // (Allocates only when something is due.)
+            let due: Vec<_> = list.extract_if(.., |(t, _)| *t <= now).collect();
             (due, list.iter().map(|(t, _)| *t).min())
         });
         if !due.is_empty() {
@@ -207,26 +207,23 @@ mod tests {
 
     #[test]
     fn waits_that_a_message_ended_do_not_move_the_deadline() {
-        let period = Duration::from_millis(40);
-        let (made, due) = block_on(async {
+        let period = Duration::from_secs(3600);
+        block_on(async {
+            let before = Instant::now();
             let mut bound = WaitBound::every(period);
-            let made = Instant::now();
+            let after = Instant::now();
             for i in 0..5 {
+                // Pending at first (the bound's deadline is then registered), then ready.
                 let msg = async {
-                    sleep_until(Instant::now() + Duration::from_millis(5)).await;
+                    smol::future::yield_now().await;
                     i
                 };
                 assert_eq!(bound.within(msg).await, Some(i));
             }
-            (made, bound.fired().await)
+            // The deadline is still the one a period after the bound was made (a fresh
+            // deadline per wait would have moved it to a period after the last wait).
+            assert!(bound.next >= before + period && bound.next <= after + period);
         });
-        // The first deadline is still a period after the bound was made, not a period after
-        // the last wait began (at least 25 ms later).
-        assert!(
-            due <= made + period,
-            "due {:?} after it was made",
-            due - made
-        );
     }
 
     #[test]
@@ -279,7 +276,7 @@ mod tests {
     }
 
     #[test]
-    fn tasks_sleeping_to_different_deadlines_each_wake_at_theirs() {
+    fn tasks_sleeping_to_different_deadlines_each_wake_no_sooner_than_theirs() {
         let start = Instant::now();
         let ex = smol::LocalExecutor::new();
         let order = std::rc::Rc::new(RefCell::new(Vec::new()));
@@ -298,11 +295,10 @@ mod tests {
                 t.await;
             }
         }));
+        // Each woke, none before its deadline (their order is the clock's: a stalled
+        // machine may find all three due at once).
         let order = order.borrow();
-        assert_eq!(
-            order.iter().map(|(ms, _)| *ms).collect::<Vec<_>>(),
-            [10, 20, 30]
-        );
+        assert_eq!(order.len(), 3);
         for (ms, at) in order.iter() {
             assert!(*at >= Duration::from_millis(*ms), "{ms} ms woke at {at:?}");
         }

@@ -556,9 +556,9 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 out.publish(&ros, &sim, Time::from_nanos(t_ns));
                 last_publish = Instant::now();
             }
-            // Wait for a command, or for the wall clock when pacing; otherwise (in lockstep,
-            // for the answer; paused; held) at most 50 ms, on one timer kept across the
-            // ticks (a timer made per tick wakes async-io's reactor every tick).
+            // Wait for a command, or for the wall clock when pacing (the parked thread's own
+            // deadline, no async-io timer); otherwise (in lockstep, for the answer; paused;
+            // held) at most 50 ms, on one deadline kept across the ticks.
             let pace = (rtf > 0.0 && answered && !paused && !held).then(|| {
                 Duration::from_secs_f64(
                     ((t_ns + period_ns) as f64 * 1e-9 / rtf - wall0.elapsed().as_secs_f64())
@@ -570,7 +570,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 .or(async {
                     match pace {
                         Some(wait) => {
-                            smol::Timer::after(wait).await;
+                            node_runtime::wait::sleep_until(Instant::now() + wait).await;
                         }
                         None => {
                             bound.fired().await;
