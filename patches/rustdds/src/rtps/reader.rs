@@ -1320,13 +1320,19 @@ impl Reader {
   // notifies DataReaders (or any listeners that history cache has changed for
   // this reader) likely use of mio channel
   pub fn notify_cache_change(&mut self) {
-    // async notify mechanism
-    self
+    // async notify mechanism. The waker is taken out under its mutex and woken
+    // after the guard is gone: the woken task stores its next waker under that
+    // same mutex (SimpleDataReaderStream::poll_next), and a task woken while it
+    // is still held (on this CPU the woken thread may run at once) finds it
+    // locked, spins, sleeps on it and waits for this thread to run again.
+    let waker = self
       .data_reader_waker
       .lock()
       .unwrap() // TODO: unwrap
-      .take() // Take to nullify the reference
-      .map(|w| w.wake_by_ref()); // If Some, call wake_by_ref
+      .take(); // Take to nullify the reference
+    if let Some(w) = waker {
+      w.wake();
+    }
 
     // mio-0.8 / mio-1.2 notify for a caller-owned poll.
     self.poll_event_sender.send();
@@ -1930,6 +1936,80 @@ mod tests {
       .expect("the early sample is in the topic cache");
     assert_eq!(cc.writer_guid, writer_guid);
     assert_eq!(cc.sequence_number, SequenceNumber::new(1));
+  }
+
+  // The DataReader's task is woken after the reader has let go of the waker's
+  // mutex: the woken task stores its next waker under that mutex, and woken
+  // while the mutex is still held it would wait for the reader's thread to run
+  // again before it could go back to sleep.
+  #[test]
+  fn data_reader_task_is_woken_with_the_waker_mutex_released() {
+    struct WakeProbe {
+      waker_slot: Arc<Mutex<Option<Waker>>>,
+      // One entry a wake-up: was the waker's mutex free when it came?
+      slot_free_at_wake: Mutex<Vec<bool>>,
+    }
+    impl std::task::Wake for WakeProbe {
+      fn wake(self: Arc<Self>) {
+        self.wake_by_ref();
+      }
+      fn wake_by_ref(self: &Arc<Self>) {
+        // The same thread holding it makes try_lock fail (WouldBlock).
+        let free = self.waker_slot.try_lock().is_ok();
+        self.slot_free_at_wake.lock().unwrap().push(free);
+      }
+    }
+
+    let ReliableTestReader {
+      mut reader,
+      reader_guid,
+      reliable_qos,
+      _channel_ends,
+      ..
+    } = reliable_test_reader();
+    let writer_guid = GUID::new_with_prefix_and_id(
+      GuidPrefix::new(&[7; 12]),
+      EntityId::create_custom_entity_id([0, 0, 1], EntityKind::WRITER_NO_KEY_USER_DEFINED),
+    );
+    reader.matched_writer_add(
+      writer_guid,
+      EntityId::UNKNOWN,
+      vec![],
+      vec![],
+      &reliable_qos,
+    );
+    let probe = Arc::new(WakeProbe {
+      waker_slot: reader.data_reader_waker.clone(),
+      slot_free_at_wake: Mutex::new(Vec::new()),
+    });
+    *reader.data_reader_waker.lock().unwrap() = Some(Waker::from(probe.clone()));
+
+    let mr_state = MessageReceiverState {
+      source_guid_prefix: writer_guid.prefix,
+      source_timestamp: Some(Timestamp::now()),
+      ..Default::default()
+    };
+    let data = Data {
+      reader_id: reader_guid.entity_id,
+      writer_id: writer_guid.entity_id,
+      writer_sn: SequenceNumber::new(1),
+      ..Data::default()
+    };
+    reader.handle_data_msg(
+      data,
+      BitFlags::<DATA_Flags>::from_flag(DATA_Flags::Data),
+      &mr_state,
+    );
+
+    assert_eq!(
+      *probe.slot_free_at_wake.lock().unwrap(),
+      vec![true],
+      "one wake-up for the sample, with the waker's mutex already released"
+    );
+    assert!(
+      reader.data_reader_waker.lock().unwrap().is_none(),
+      "the waker is used once"
+    );
   }
 
   #[test]
