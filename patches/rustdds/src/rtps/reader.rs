@@ -1865,6 +1865,21 @@ mod tests {
     }
   }
 
+  // A remote writer of the tests of this patch's changes, and the receiver
+  // state of a message from it (with a source timestamp).
+  fn remote_test_writer() -> (GUID, MessageReceiverState<'static>) {
+    let writer_guid = GUID::new_with_prefix_and_id(
+      GuidPrefix::new(&[7; 12]),
+      EntityId::create_custom_entity_id([0, 0, 1], EntityKind::WRITER_NO_KEY_USER_DEFINED),
+    );
+    let mr_state = MessageReceiverState {
+      source_guid_prefix: writer_guid.prefix,
+      source_timestamp: Some(Timestamp::now()),
+      ..Default::default()
+    };
+    (writer_guid, mr_state)
+  }
+
   // DATA that a writer addresses to this reader before the reader has matched
   // the writer (its discovery data still on the way) is delivered once the
   // writer is matched. DATA to no particular reader is not kept.
@@ -1877,16 +1892,7 @@ mod tests {
       reliable_qos,
       _channel_ends,
     } = reliable_test_reader();
-
-    let writer_guid = GUID::new_with_prefix_and_id(
-      GuidPrefix::new(&[7; 12]),
-      EntityId::create_custom_entity_id([0, 0, 1], EntityKind::WRITER_NO_KEY_USER_DEFINED),
-    );
-    let mr_state = MessageReceiverState {
-      source_guid_prefix: writer_guid.prefix,
-      source_timestamp: Some(Timestamp::now()),
-      ..Default::default()
-    };
+    let (writer_guid, mr_state) = remote_test_writer();
     let data_flags = BitFlags::<DATA_Flags>::from_flag(DATA_Flags::Data);
     // sn 1 to this reader, sn 2 to any reader, both before the match.
     let to_me = Data {
@@ -1960,23 +1966,16 @@ mod tests {
       }
     }
 
-    let ReliableTestReader {
-      mut reader,
-      reader_guid,
-      reliable_qos,
-      _channel_ends,
-      ..
-    } = reliable_test_reader();
-    let writer_guid = GUID::new_with_prefix_and_id(
-      GuidPrefix::new(&[7; 12]),
-      EntityId::create_custom_entity_id([0, 0, 1], EntityKind::WRITER_NO_KEY_USER_DEFINED),
-    );
+    // (The fixture keeps the reader's channel ends alive.)
+    let mut fixture = reliable_test_reader();
+    let reader = &mut fixture.reader;
+    let (writer_guid, mr_state) = remote_test_writer();
     reader.matched_writer_add(
       writer_guid,
       EntityId::UNKNOWN,
       vec![],
       vec![],
-      &reliable_qos,
+      &fixture.reliable_qos,
     );
     let probe = Arc::new(WakeProbe {
       waker_slot: reader.data_reader_waker.clone(),
@@ -1984,13 +1983,8 @@ mod tests {
     });
     *reader.data_reader_waker.lock().unwrap() = Some(Waker::from(probe.clone()));
 
-    let mr_state = MessageReceiverState {
-      source_guid_prefix: writer_guid.prefix,
-      source_timestamp: Some(Timestamp::now()),
-      ..Default::default()
-    };
     let data = Data {
-      reader_id: reader_guid.entity_id,
+      reader_id: fixture.reader_guid.entity_id,
       writer_id: writer_guid.entity_id,
       writer_sn: SequenceNumber::new(1),
       ..Data::default()
