@@ -120,19 +120,30 @@ fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
     assert!(!b.join("logs/joint_bridge.log").exists());
     let mut r2 = report(&b);
     let mut r1 = r.clone();
-    // The messaging work of a tick, counted over the same ticks: composed, the lockstep's
-    // hops between the four nodes send nothing over UDP (each sample to another process is
-    // a datagram, and an acknowledgement back), so fewer datagrams leave per tick; those
-    // left go to robot_state_publisher and `biped walk`'s recorder.
+    // The messaging work of a tick, counted over the same ticks. Composed, the lockstep's
+    // hops between the four nodes are in-process calls: no DDS thread wakes for them and no
+    // node waits on another process, so far fewer context switches a tick (measured
+    // 2026-11-29: 7.6-9.8 composed against 23.9-27.9 with four processes; with a core
+    // busy, 13.8-16.1 against 28.9-31.1; asserted with room: a fifth fewer). The outside
+    // peers (robot_state_publisher, `biped walk`'s recorder) still get their samples over
+    // UDP. The datagram count no longer tells the two apart: since the writers' ACKNACK rule
+    // (patches/README.md) the four processes' tick sends 19-22 datagrams and the composed
+    // one's 11-22 (BENCHMARKS.md, #17; why the composed process's samples to the outside
+    // draw more is open there).
     let work = |r: &Value, key: &str| num(&r["work_per_tick"], key);
     for r in [&r1, &r2] {
         // The run records 38 s of simulated time: over 3000 ticks of 10 ms.
         assert!(work(r, "ticks") > 3000.0, "{}", r["work_per_tick"]);
     }
-    let (separate, composed) = (work(&r1, "udp_datagrams"), work(&r2, "udp_datagrams"));
+    let (separate, composed) = (work(&r1, "context_switches"), work(&r2, "context_switches"));
     assert!(
-        composed >= 8.0 && composed < separate - 6.0,
-        "UDP datagrams per tick: {separate} with four processes, {composed} composed"
+        composed < separate / 1.25,
+        "context switches per tick: {separate} with four processes, {composed} composed"
+    );
+    assert!(
+        work(&r2, "udp_datagrams") >= 8.0,
+        "composed, the outside peers get their samples over UDP: {}",
+        r2["work_per_tick"]
     );
     for v in [&mut r1, &mut r2] {
         drop_wall_clock_figures(v);
