@@ -17,7 +17,9 @@
 //! - [`affinity`]: the `cpu_affinity` parameter, binding a node's process to CPUs;
 //! - [`cpu_latency`]: the `cpu_dma_latency_us` parameter, a CPU latency request held while
 //!   the node's process runs;
-//! - [`wait`]: a bound on a loop's waits for its next message, one timer kept across them.
+//! - [`wait`]: how a node's thread waits: parked on a futex ([`wait::block_on`]), its
+//!   deadlines the futex wait's timeout; [`WaitBound`], one deadline kept across a loop's
+//!   waits for its next message.
 //!
 //! ros2-client (pure Rust over RustDDS) underneath; no core crate depends on this one, only
 //! the node binaries (each core crate's `node` feature) and the `biped` command.

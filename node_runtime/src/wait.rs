@@ -306,6 +306,16 @@ mod tests {
 
     #[test]
     fn outside_block_on_a_sleep_is_an_async_io_timer() {
+        // Polled where no block_on of this module runs, the deadline is an async-io timer...
+        let mut sleep = sleep_until(Instant::now() + Duration::from_secs(3600));
+        assert!(
+            Pin::new(&mut sleep)
+                .poll(&mut Context::from_waker(Waker::noop()))
+                .is_pending()
+        );
+        assert!(sleep.fallback.is_some());
+        assert!(DEADLINES.with(|d| d.borrow().is_none()));
+        // ...which completes, not before its time, in another executor.
         let due = Instant::now() + Duration::from_millis(10);
         smol::block_on(sleep_until(due));
         assert!(Instant::now() >= due);
