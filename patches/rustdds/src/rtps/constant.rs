@@ -52,11 +52,12 @@ pub const HEARTBEAT_PERIOD_SLOW: crate::structure::duration::Duration =
 pub const HEARTBEAT_PERIOD_FAST: crate::structure::duration::Duration =
   crate::structure::duration::Duration::from_millis(100);
 
-// How often a writer sending its fresh samples itself (the direct route of
-// `writer_send_buffer`) asks its readers for an ACKNACK in the HEARTBEAT
-// piggybacked on a sample, at most, unless half its send window is
-// unacknowledged. Within the period the piggybacked HEARTBEAT is final.
-pub const DIRECT_SEND_ACKNACK_REQUEST_PERIOD: std::time::Duration =
+// How often a writer asks its readers for an ACKNACK in the HEARTBEAT
+// piggybacked on its fresh samples, at most, unless half its send window is
+// unacknowledged, whichever thread sends them (the writing thread on the
+// direct route of `writer_send_buffer`, or the event loop). Within the period
+// the piggybacked HEARTBEAT is final.
+pub const PIGGYBACK_ACKNACK_REQUEST_PERIOD: std::time::Duration =
   std::time::Duration::from_millis(100);
 
 // Fallback upper bound on the number of CacheChanges a Writer retains in its

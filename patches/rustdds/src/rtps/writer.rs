@@ -750,7 +750,12 @@ impl Writer {
       seq = seq.plus_1();
     }
 
-    // One trailing HEARTBEAT for the whole datagram (reliable writers only).
+    // One trailing HEARTBEAT for the whole datagram (reliable writers only). It
+    // asks for an ACKNACK by the same rule as a sample the writing thread sends
+    // itself (`WriterSendBuffer::acknack_request_due`): once a period or at half
+    // the window; otherwise it is final, and only a reader missing some of what
+    // it announces answers.
+    let asks_for_acknack = hb_reserve > 0 && self.send_buffer.acknack_request_due();
     if hb_reserve > 0 {
       builder = builder.heartbeat_msg(
         self.entity_id(),
@@ -759,7 +764,7 @@ impl Writer {
         self.next_heartbeat_count(),
         self.endianness,
         EntityId::UNKNOWN, // to all readers
-        false,             // final_flag: request ACKNACK
+        !asks_for_acknack, // final_flag
         false,             // liveliness_flag
       );
     }
@@ -773,6 +778,9 @@ impl Writer {
     );
 
     if blocked.is_empty() {
+      if asks_for_acknack {
+        self.send_buffer.acknack_requested();
+      }
       Some(BatchOutcome::Sent { last_seq })
     } else if may_block {
       Some(BatchOutcome::Blocked { blocked })
@@ -2804,9 +2812,10 @@ mod tests {
     assert_eq!(interval_ms(Some(Duration::ZERO)), 10);
   }
 
-  // Repair (ACKNACK response) tests. The Writer runs without an event loop, so
-  // the tests poll the shared timer themselves and hand SendRepairData to the
-  // Writer as the event loop would.
+  // Tests of a Writer matched with one reader: repair (ACKNACK response), and
+  // the HEARTBEAT its push piggybacks. The Writer runs without an event loop,
+  // so the tests poll the shared timer themselves and hand SendRepairData to
+  // the Writer as the event loop would, and call `process_pending` for a push.
   mod repair {
     use std::{
       cell::RefCell,
@@ -3127,6 +3136,74 @@ mod tests {
       f.writer.udp_sender.flush_control(SocketId::Unicast);
       assert_eq!(f.repair_round(), 5);
       assert!(!f.reader_proxy().repair_mode);
+    }
+
+    // Fresh samples the event loop pushes (the writing thread does not send
+    // them: no direct route) carry a HEARTBEAT that asks for an ACKNACK by the
+    // direct send's rule: the first push asks, the next within the period is
+    // final (a reader that has everything stays silent), and a push a period
+    // after the last request asks again.
+    #[test]
+    fn the_event_loops_push_asks_for_an_acknack_once_a_period() {
+      use crate::rtps::{
+        constant::PIGGYBACK_ACKNACK_REQUEST_PERIOD,
+        writer_send_buffer::tests::{receive, set_last_acknack_request},
+      };
+      let reader = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+      reader
+        .set_read_timeout(Some(StdDuration::from_secs(10)))
+        .unwrap();
+      let mut f = Fixture::user(0, 8, Some(reader.local_addr().unwrap()));
+      // The reader is on this host (its traffic came from loopback), so it is
+      // reached at its loopback locator, by the event loop only.
+      f.writer.set_send_from_writing_thread(false);
+      f.writer.set_prefer_loopback_same_host(true);
+      f.writer.interface_observations.borrow_mut().record(
+        f.reader_guid.prefix,
+        None,
+        SocketAddr::from(([127, 0, 0, 1], 7411)),
+      );
+      f.writer.recompute_routes_for(f.reader_guid.prefix);
+      assert!(f.reader_proxy().send_route().unicast.is_some());
+      let mut push = |f: &mut Fixture| -> (Vec<i64>, Vec<(i64, i64, bool)>) {
+        f.writer.process_pending();
+        let (data, heartbeats) = receive(&reader);
+        let heartbeats = heartbeats
+          .iter()
+          .map(|&(a, b, _, fin)| (a, b, fin))
+          .collect();
+        (data, heartbeats)
+      };
+      let admit = |f: &Fixture| {
+        let data = DDSData::new(SerializedPayload::new(
+          RepresentationIdentifier::CDR_LE,
+          vec![0; 8],
+        ));
+        assert!(matches!(
+          f.writer
+            .send_buffer
+            .admit_blocking(WriteOptions::default(), data, Some(StdDuration::ZERO)),
+          Admission::Admitted(a) if !a.sent_directly
+        ));
+      };
+
+      let before = Instant::now();
+      admit(&f);
+      assert_eq!(push(&mut f), (vec![1], vec![(1, 1, false)]));
+      let asked = set_last_acknack_request(
+        &f.writer.send_buffer,
+        // The period does not run out during the test, however slow the machine.
+        Some(Instant::now() + StdDuration::from_secs(3600)),
+      );
+      assert!(asked.is_some_and(|t| t >= before), "{asked:?}");
+      admit(&f);
+      assert_eq!(push(&mut f), (vec![2], vec![(1, 2, true)]));
+      set_last_acknack_request(
+        &f.writer.send_buffer,
+        Some(Instant::now() - PIGGYBACK_ACKNACK_REQUEST_PERIOD),
+      );
+      admit(&f);
+      assert_eq!(push(&mut f), (vec![3], vec![(1, 3, false)]));
     }
   }
 }

@@ -17,7 +17,7 @@ use speedy::Endianness;
 
 use crate::{
   dds::{ddsdata::DDSData, with_key::datawriter::WriteOptions},
-  rtps::{constant::DIRECT_SEND_ACKNACK_REQUEST_PERIOD, message::MessageBuilder},
+  rtps::{constant::PIGGYBACK_ACKNACK_REQUEST_PERIOD, message::MessageBuilder},
   structure::{
     cache_change::CacheChange,
     guid::{EntityId, GUID},
@@ -104,15 +104,27 @@ struct Inner {
   // Set by the Writer while every matched reader is reached by one unicast
   // datagram: the writing thread then sends a fresh sample itself.
   direct: Option<DirectRoute>,
-  // When a directly sent sample last asked its readers for an ACKNACK (its
-  // HEARTBEAT without the final flag). See [`piggyback_asks_for_acknack`].
+  // When a fresh sample last asked its readers for an ACKNACK (its HEARTBEAT
+  // without the final flag), sent by the writing thread or by the event loop.
+  // See [`piggyback_asks_for_acknack`].
   last_acknack_request: Option<Instant>,
 }
 
-/// Whether the HEARTBEAT piggybacked on a directly sent sample asks the readers
-/// to acknowledge (final flag clear), as Cyclone DDS's heartbeat control does:
-/// when no directly sent sample asked within
-/// [`DIRECT_SEND_ACKNACK_REQUEST_PERIOD`] (so a sporadic sample is acknowledged
+impl Inner {
+  /// [`piggyback_asks_for_acknack`] for a HEARTBEAT piggybacked now.
+  fn acknack_request_due(&self, now: Instant) -> bool {
+    let unacked = self
+      .reliable_readers_present
+      .then(|| i64::from(self.last_seq) - i64::from(self.acked_before) + 1);
+    piggyback_asks_for_acknack(self.last_acknack_request, now, unacked, self.window_limit)
+  }
+}
+
+/// Whether the HEARTBEAT piggybacked on fresh samples asks the readers to
+/// acknowledge (final flag clear), as Cyclone DDS's heartbeat control does,
+/// whichever thread sends them (the writing thread on the direct route, or the
+/// event loop's push): when no fresh sample asked within
+/// [`PIGGYBACK_ACKNACK_REQUEST_PERIOD`] (so a sporadic sample is acknowledged
 /// at once, and a steady flow about once a period), or when half the reliable
 /// send window is unacknowledged (so back-pressure never waits for a periodic
 /// heartbeat). Otherwise the HEARTBEAT is final: a reader that has everything
@@ -128,7 +140,7 @@ fn piggyback_asks_for_acknack(
   window_limit: usize,
 ) -> bool {
   let period_over = last_request
-    .is_none_or(|t| now.saturating_duration_since(t) >= DIRECT_SEND_ACKNACK_REQUEST_PERIOD);
+    .is_none_or(|t| now.saturating_duration_since(t) >= PIGGYBACK_ACKNACK_REQUEST_PERIOD);
   let half_window = unacked.is_some_and(|n| n.saturating_mul(2) >= window_limit as i64);
   period_over || half_window
 }
@@ -455,15 +467,7 @@ impl WriterSendBuffer {
     );
     let mut asks_for_acknack = false;
     if let Some(count) = &route.heartbeat_count {
-      let unacked = inner
-        .reliable_readers_present
-        .then(|| i64::from(inner.last_seq) - i64::from(inner.acked_before) + 1);
-      asks_for_acknack = piggyback_asks_for_acknack(
-        inner.last_acknack_request,
-        Instant::now(),
-        unacked,
-        inner.window_limit,
-      );
+      asks_for_acknack = inner.acknack_request_due(Instant::now());
       builder = builder.heartbeat_msg(
         shared.writer_guid.entity_id,
         inner.first_seq,
@@ -505,6 +509,25 @@ impl WriterSendBuffer {
   /// fresh samples themselves. See [`DirectRoute`].
   pub fn set_direct_route(&self, route: Option<DirectRoute>) {
     self.shared.inner.lock().unwrap().direct = route;
+  }
+
+  /// Whether the HEARTBEAT the event loop piggybacks now on fresh samples asks
+  /// the readers for an ACKNACK (the rule of [`piggyback_asks_for_acknack`],
+  /// shared with the writing thread's direct sends). When it does and the
+  /// datagram goes out, the loop calls [`Self::acknack_requested`].
+  pub fn acknack_request_due(&self) -> bool {
+    self
+      .shared
+      .inner
+      .lock()
+      .unwrap()
+      .acknack_request_due(Instant::now())
+  }
+
+  /// A HEARTBEAT asking for an ACKNACK went out with fresh samples: the next
+  /// one asks again a period from now (or at half the window).
+  pub fn acknack_requested(&self) {
+    self.shared.inner.lock().unwrap().last_acknack_request = Some(Instant::now());
   }
 
   /// The latest allocated sequence number and the highest one on the wire, in
@@ -645,7 +668,7 @@ fn register_waker(wakers: &mut Vec<Waker>, waker: &Waker) {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
   use std::time::Duration as StdDuration;
 
   use super::*;
@@ -708,8 +731,19 @@ mod tests {
   // Pretends the last ACKNACK request was just made and the period will not
   // run out during the test, whatever the machine's pauses between sends.
   fn hold_acknack_period(buf: &WriterSendBuffer) {
-    buf.shared.inner.lock().unwrap().last_acknack_request =
-      Some(Instant::now() + StdDuration::from_secs(3600));
+    set_last_acknack_request(buf, Some(Instant::now() + StdDuration::from_secs(3600)));
+  }
+
+  // Sets when a fresh sample last asked for an ACKNACK; returns the time it
+  // replaces.
+  pub(crate) fn set_last_acknack_request(
+    buf: &WriterSendBuffer,
+    at: Option<Instant>,
+  ) -> Option<Instant> {
+    std::mem::replace(
+      &mut buf.shared.inner.lock().unwrap().last_acknack_request,
+      at,
+    )
   }
 
   fn admit(buf: &WriterSendBuffer, payload_len: usize) -> Admitted {
@@ -729,7 +763,7 @@ mod tests {
   // The DATA sequence numbers and HEARTBEAT (first, last, count, final flag)
   // of one received datagram.
   #[allow(clippy::type_complexity)]
-  fn receive(reader: &UdpSocket) -> (Vec<i64>, Vec<(i64, i64, i32, bool)>) {
+  pub(crate) fn receive(reader: &UdpSocket) -> (Vec<i64>, Vec<(i64, i64, i32, bool)>) {
     use crate::{
       messages::submessages::{submessage_flag::HEARTBEAT_Flags, submessages::WriterSubmessage},
       rtps::message::Message,
@@ -798,16 +832,17 @@ mod tests {
     let (buf, reader) = buffer_with_direct_route(true);
     let before = Instant::now();
     assert!(admit(&buf, 8).sent_directly);
-    let asked = buf.shared.inner.lock().unwrap().last_acknack_request;
+    let asked = set_last_acknack_request(&buf, Some(Instant::now() + StdDuration::from_secs(3600)));
     assert!(asked.is_some_and(|t| t >= before), "{asked:?}");
-    hold_acknack_period(&buf);
     for _ in 0..2 {
       assert!(admit(&buf, 8).sent_directly);
     }
     assert_eq!(final_flags(&reader, 3), [false, true, true]);
     // A period after the last request, the next sample asks again.
-    buf.shared.inner.lock().unwrap().last_acknack_request =
-      Some(Instant::now() - DIRECT_SEND_ACKNACK_REQUEST_PERIOD);
+    set_last_acknack_request(
+      &buf,
+      Some(Instant::now() - PIGGYBACK_ACKNACK_REQUEST_PERIOD),
+    );
     assert!(admit(&buf, 8).sent_directly);
     hold_acknack_period(&buf);
     assert!(admit(&buf, 8).sent_directly);
@@ -832,7 +867,7 @@ mod tests {
   #[test]
   fn an_acknack_is_asked_for_after_a_period_or_at_half_the_window() {
     let t0 = Instant::now();
-    let p = DIRECT_SEND_ACKNACK_REQUEST_PERIOD;
+    let p = PIGGYBACK_ACKNACK_REQUEST_PERIOD;
     assert!(piggyback_asks_for_acknack(None, t0, None, 100));
     assert!(!piggyback_asks_for_acknack(Some(t0), t0 + p / 2, None, 100));
     assert!(piggyback_asks_for_acknack(Some(t0), t0 + p, None, 100));
@@ -1158,7 +1193,10 @@ mod tests {
       std::thread::yield_now();
     }
     buf.set_acked_frontier(Some(SequenceNumber::new(5)));
-    assert!(producer.join().unwrap(), "the blocked producer was not admitted");
+    assert!(
+      producer.join().unwrap(),
+      "the blocked producer was not admitted"
+    );
     assert_eq!(notified(&buf), 1);
 
     let waiter = {
@@ -1171,7 +1209,10 @@ mod tests {
       std::thread::yield_now();
     }
     buf.set_acked_frontier(Some(SequenceNumber::new(7)));
-    assert!(waiter.join().unwrap(), "the waiter was not told of the acknowledgement");
+    assert!(
+      waiter.join().unwrap(),
+      "the waiter was not told of the acknowledgement"
+    );
     assert_eq!(notified(&buf), 2);
     assert_eq!(blocked(&buf), 0);
   }
