@@ -15,8 +15,9 @@
 //!   support polygon, for RViz and Foxglove), `imu/data` (sensor_msgs/msg/Imu: what an IMU
 //!   at the base link's origin reads, in the base link's frame: orientation, angular
 //!   velocity, specific force, +9.81 m/s² up standing still; exact, covariances 0 =
-//!   unknown, REP-145), and
-//!   `/clock` (rosgraph_msgs/msg/Clock, last);
+//!   unknown, REP-145), and `/clock` (rosgraph_msgs/msg/Clock). In this order: `joint_states`
+//!   and `imu/data` (what the fleet's nodes act on), `/clock`, then the rest (stamped: a
+//!   reader keys them by their stamp, not by the `/clock` before them);
 //! - reports a fall once on `sim/fall` (std_msgs/msg/String, the reason) and `/rosout`;
 //! - serves `~/pause` (std_srvs/srv/SetBool, as Gazebo's pause and unpause of physics):
 //!   `true` stops simulated time where it is (`/clock` and the states are sent again every
@@ -156,7 +157,8 @@ struct Outputs {
 }
 
 impl Outputs {
-    /// Publishes the state at the simulator's present time, `/clock` last.
+    /// Publishes the state at the simulator's present time: the joint states and the IMU,
+    /// then `/clock`, then the ground truth and the contact topics.
     fn publish(&self, ros: &RosNode, sim: &Sim, t: Time) {
         let header = |frame: &str| Header {
             stamp: t,
@@ -182,15 +184,6 @@ impl Outputs {
                 })
                 .map_err(|e| e.to_string()),
         );
-        check(
-            "sim/base_pose",
-            self.base_pose
-                .publish(PoseStamped {
-                    header: header(&self.world_frame),
-                    pose: Pose::from(&base),
-                })
-                .map_err(|e| e.to_string()),
-        );
         let imu = sim.imu();
         check(
             "imu/data",
@@ -202,6 +195,26 @@ impl Outputs {
                     linear_acceleration: (&imu.specific_force_m_s2).into(),
                     // Ground truth: no error, but no covariance claimed either (0: unknown).
                     ..Imu::default()
+                })
+                .map_err(|e| e.to_string()),
+        );
+        // `/clock` after what the fleet's nodes act on (a node ticking on it has that tick's
+        // joint states and IMU) and before the ground truth and the observers' topics: in
+        // lockstep the next tick starts a few sends earlier (four processes 9 % faster,
+        // BENCHMARKS.md, "/clock before the observers' topics"). Their readers key them by
+        // stamp.
+        check(
+            "/clock",
+            self.clock
+                .publish(Clock { clock: t })
+                .map_err(|e| e.to_string()),
+        );
+        check(
+            "sim/base_pose",
+            self.base_pose
+                .publish(PoseStamped {
+                    header: header(&self.world_frame),
+                    pose: Pose::from(&base),
                 })
                 .map_err(|e| e.to_string()),
         );
@@ -255,12 +268,6 @@ impl Outputs {
                     contacts.cop_world_m,
                     &contacts.support_polygon,
                 ))
-                .map_err(|e| e.to_string()),
-        );
-        check(
-            "/clock",
-            self.clock
-                .publish(Clock { clock: t })
                 .map_err(|e| e.to_string()),
         );
         for f in failed {
