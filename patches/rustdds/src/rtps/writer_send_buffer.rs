@@ -746,7 +746,7 @@ pub(crate) mod tests {
     )
   }
 
-  fn admit(buf: &WriterSendBuffer, payload_len: usize) -> Admitted {
+  pub(crate) fn admit(buf: &WriterSendBuffer, payload_len: usize) -> Admitted {
     match buf.admit_blocking(
       WriteOptions::default(),
       DDSData::new(SerializedPayload::new(
