@@ -31,6 +31,8 @@
 //! p99 and max; the table has a column for the CPU other processes used either way),
 //! `--cpu-dma-latency-us US` (hold a CPU latency request during the runs, as a node's
 //! `cpu_dma_latency_us` parameter does: 0 keeps idle CPUs polling instead of halting),
+//! `--thread-priority P` (run the bench's and the relay's threads under SCHED_FIFO at
+//! priority P, as a node's `thread_priority` parameter does; the rclpy relay inherits it),
 //! `--dump DIR` (each run's latencies, one CSV per relay and rate, in the order sent).
 //! A benchmark, not a test: it is not part of `cargo test` or `scripts/test`.
 
@@ -104,6 +106,8 @@ struct Opts {
     cpus: Option<Vec<usize>>,
     /// `--cpu-dma-latency-us`: a CPU latency request held during the runs.
     latency_us: Option<u32>,
+    /// `--thread-priority`: the SCHED_FIFO priority of the bench's and the relay's threads.
+    priority: Option<u8>,
     /// `--dump`: where each run's latencies go, one CSV per relay and rate.
     dump: Option<PathBuf>,
 }
@@ -118,6 +122,7 @@ impl Opts {
             wait_idle: false,
             cpus: None,
             latency_us: None,
+            priority: None,
             dump: None,
         };
         let mut it = args.into_iter();
@@ -138,6 +143,13 @@ impl Opts {
                     o.cpus = node_runtime::affinity::cpu_affinity_of(&yaml)?;
                 }
                 "--cpu-dma-latency-us" => o.latency_us = Some(common::latency_arg(&value()?)?),
+                "--thread-priority" => {
+                    // The parameter's own parsing and checks.
+                    let p = value()?;
+                    let yaml = serde_norway::from_str(&p)
+                        .with_context(|| format!("--thread-priority {p}"))?;
+                    o.priority = Some(node_runtime::priority::thread_priority_of(&yaml)?);
+                }
                 "--dump" => o.dump = Some(PathBuf::from(value()?)),
                 "--only" => {
                     o.relays = match value()?.as_str() {
@@ -147,7 +159,7 @@ impl Opts {
                     }
                 }
                 other => bail!(
-                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...], --cpu-dma-latency-us US, --dump DIR)"
+                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...], --cpu-dma-latency-us US, --thread-priority P, --dump DIR)"
                 ),
             }
         }
@@ -167,6 +179,10 @@ fn run() -> anyhow::Result<()> {
     // Before DDS starts a thread: they all inherit it, as does the rclpy relay's process.
     if let Some(cpus) = &opts.cpus {
         node_runtime::affinity::bind_this_thread(cpus)?;
+    }
+    // Likewise inherited by every thread and the rclpy relay's process (its threads too).
+    if let Some(priority) = opts.priority {
+        node_runtime::priority::run_this_thread_realtime(priority)?;
     }
     // The whole machine's, so the rclpy relay's runs have it too; held until the bench ends.
     let _latency = opts
@@ -214,6 +230,10 @@ fn run() -> anyhow::Result<()> {
                     // The bench holds it already (the request is the machine's): the node
                     // holds it as a user would set it.
                     cmd.args(["-p", &format!("cpu_dma_latency_us:={us}")]);
+                }
+                if let Some(priority) = opts.priority {
+                    // Inherited as well; the parameter is what a user would set.
+                    cmd.args(["-p", &format!("thread_priority:={priority}")]);
                 }
                 spawn_relay(&mut cmd, relay)?
             }
@@ -952,8 +972,16 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
              it, the ik_solver by its `cpu_dma_latency_us` parameter)"
         ),
     };
+    let realtime = match opts.priority {
+        None => String::new(),
+        Some(p) => format!(
+            "; every thread of the bench and of the relay under SCHED_FIFO at priority {p} \
+             (`--thread-priority`: the ik_solver by its `thread_priority` parameter, the rclpy \
+             relay by inheriting the bench's)"
+        ),
+    };
     let measured = format!(
-        "Measured {} on {}; release build{bound}{latency}; ros2-client {}, RustDDS {}{}.",
+        "Measured {} on {}; release build{bound}{latency}{realtime}; ros2-client {}, RustDDS {}{}.",
         common::today(),
         machine(),
         lock_version(root, "ros2-client"),

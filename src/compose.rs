@@ -174,6 +174,19 @@ pub fn compose(args: &[String]) -> anyhow::Result<()> {
         .min()
         .map(node_runtime::CpuLatencyRequest::hold)
         .transpose()?;
+    // The nodes share their threads (the DDS threads always): the process runs under
+    // real-time scheduling at the highest priority any node asks for, before any thread starts.
+    let priorities = nodes
+        .iter()
+        .map(|(name, _, setup)| {
+            setup
+                .thread_priority()
+                .with_context(|| format!("{name}'s parameters"))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    if let Some(priority) = priorities.into_iter().flatten().max() {
+        node_runtime::priority::run_this_thread_realtime(priority)?;
+    }
     let stop: Arc<AtomicBool> = node_runtime::shutdown_flag()?;
     let host = Host::composed(stop)?;
     eprintln!(

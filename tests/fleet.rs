@@ -1581,3 +1581,111 @@ fn cpu_dma_latency_is_held_while_a_node_runs_and_a_bad_value_is_refused_naming_i
         );
     }
 }
+
+/// The scheduling policy and real-time priority of every thread of process `pid`, with the
+/// thread's name.
+fn thread_policies(pid: &str) -> Vec<(String, (u32, u32))> {
+    std::fs::read_dir(format!("/proc/{pid}/task"))
+        .unwrap()
+        .map(|t| {
+            let t = t.unwrap().path();
+            let name = std::fs::read_to_string(t.join("comm")).unwrap();
+            let stat = std::fs::read_to_string(t.join("stat")).unwrap();
+            let policy = node_runtime::priority::task_policy(&stat).unwrap();
+            (name.trim().to_owned(), policy)
+        })
+        .collect()
+}
+
+/// `thread_priority` (as ros2_control_node's) runs every thread of a node's process, the DDS
+/// threads included, under SCHED_FIFO at that priority; unset, they stay with the normal
+/// scheduler; `biped compose` runs its process at the highest its nodes ask for. Without the
+/// privilege it takes the node does not start and says what it takes; a value that is not a
+/// priority is refused naming it.
+#[test]
+fn thread_priority_runs_every_thread_under_sched_fifo_and_a_refusal_says_what_it_takes() {
+    const FIFO: u32 = 1;
+    let (node, pid) = start_ready_in_netns(
+        213,
+        "ik_solver",
+        &["--ros-args", "-p", "thread_priority:=30"],
+    );
+    let tasks = thread_policies(&pid);
+    kill_started(node, &pid);
+    // Main, signal, DDS event loop and discovery, async-io.
+    assert!(tasks.len() >= 3, "{tasks:?}");
+    for (name, policy) in &tasks {
+        assert_eq!(policy, &(FIFO, 30), "{name} (of {tasks:?})");
+    }
+
+    let (node, pid) = start_ready_in_netns(213, "ik_solver", &[]);
+    let tasks = thread_policies(&pid);
+    kill_started(node, &pid);
+    for (name, policy) in &tasks {
+        assert_eq!(policy, &(0, 0), "unset: {name} (of {tasks:?})");
+    }
+
+    let (composed, pid) = start_ready_in_netns(
+        214,
+        "biped",
+        &[
+            "compose",
+            "--node",
+            "ik_solver",
+            "--ros-args",
+            "-p",
+            "thread_priority:=20",
+            "--node",
+            "joint_bridge",
+            "--ros-args",
+            "-p",
+            "backend:=mock",
+            "-p",
+            "thread_priority:=40",
+        ],
+    );
+    let tasks = thread_policies(&pid);
+    kill_started(composed, &pid);
+    assert!(tasks.len() >= 3, "{tasks:?}");
+    for (name, policy) in &tasks {
+        assert_eq!(policy, &(FIFO, 40), "composed: {name} (of {tasks:?})");
+    }
+
+    // Root without CAP_SYS_NICE (and this machine's RLIMIT_RTPRIO of 0): refused.
+    let refused = common::in_netns("exec timeout 60 \"$@\"", 214)
+        .args([
+            "setpriv",
+            "--bounding-set",
+            "-sys_nice",
+            "prlimit",
+            "--rtprio=0",
+        ])
+        .arg(bin_dir().join("ik_solver"))
+        .args(["--ros-args", "-p", "thread_priority:=50"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains(
+            "ik_solver: error: parameter `thread_priority` = 50: cannot run the process under \
+             SCHED_FIFO (it takes CAP_SYS_NICE"
+        ) && err.contains("Operation not permitted"),
+        "{err}"
+    );
+
+    for value in ["0", "100", "high"] {
+        let refused = common::in_netns("exec timeout 60 \"$@\"", 214)
+            .arg(bin_dir().join("ik_solver"))
+            .args(["--ros-args", "-p", &format!("thread_priority:={value}")])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&refused.stderr);
+        assert_eq!(refused.status.code(), Some(1), "{value}: {err}");
+        assert!(
+            err.contains("ik_solver: error: parameters: parameter `thread_priority`: ")
+                && err.contains(value),
+            "{value}: {err}"
+        );
+    }
+}

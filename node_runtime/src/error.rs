@@ -42,6 +42,19 @@ pub enum RosError {
         #[source]
         source: std::io::Error,
     },
+    /// The kernel refused the real-time scheduling of `thread_priority`.
+    #[error(
+        "parameter `thread_priority` = {priority}: cannot run the process under SCHED_FIFO \
+         (it takes CAP_SYS_NICE, as root has, or an RLIMIT_RTPRIO of at least {priority}: \
+         `ulimit -r`, `rtprio` in /etc/security/limits.conf)"
+    )]
+    ThreadPriority {
+        /// The priority asked for.
+        priority: u8,
+        /// The kernel's answer.
+        #[source]
+        source: std::io::Error,
+    },
     /// DDS or ros2-client refused to create something.
     #[error("{what}: {message}")]
     Dds {

@@ -17,6 +17,8 @@
 //! - [`affinity`]: the `cpu_affinity` parameter, binding a node's process to CPUs;
 //! - [`cpu_latency`]: the `cpu_dma_latency_us` parameter, a CPU latency request held while
 //!   the node's process runs;
+//! - [`priority`]: the `thread_priority` parameter, the node's process under real-time
+//!   scheduling (`SCHED_FIFO`);
 //! - [`wait`]: how a node's thread waits: parked on a futex ([`wait::block_on`]), its
 //!   deadlines the futex wait's timeout; [`WaitBound`], one deadline kept across a loop's
 //!   waits for its next message.
@@ -34,6 +36,7 @@ pub mod local;
 pub mod log;
 pub mod node;
 pub mod params;
+pub mod priority;
 pub mod qos;
 pub mod wait;
 
@@ -55,4 +58,5 @@ pub use params::{
     COMMON_PARAMS, ParameterCheck, check_known, from_parameter_value, node_parameters,
     read_at_startup, read_at_startup_only, to_parameter_value,
 };
+pub use priority::THREAD_PRIORITY_PARAM;
 pub use wait::WaitBound;

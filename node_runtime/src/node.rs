@@ -18,6 +18,7 @@ use crate::error::RosError;
 use crate::local::{Bus, Publisher, RosMessageBound, Subscription};
 use crate::log::Log;
 use crate::params::{ParameterCheck, node_parameters, read_at_startup_only};
+use crate::priority::{THREAD_PRIORITY_PARAM, run_this_thread_realtime, thread_priority_of};
 use crate::qos;
 
 /// Creates a node with parameter services and `/rosout` on, with the given parameters
@@ -149,6 +150,15 @@ impl NodeSetup {
             .transpose()
     }
 
+    /// The `SCHED_FIFO` priority of the `thread_priority` parameter ([`crate::priority`]);
+    /// `None`: the normal scheduler.
+    pub fn thread_priority(&self) -> Result<Option<u8>, RosError> {
+        self.params
+            .get(THREAD_PRIORITY_PARAM)
+            .map(thread_priority_of)
+            .transpose()
+    }
+
     /// A string parameter, or `default`.
     pub fn str_param(&self, name: &str, default: &str) -> Result<String, RosError> {
         match self.params.get(name) {
@@ -191,8 +201,9 @@ pub(crate) fn printed(e: RosError) -> String {
 }
 
 /// The `main` of a node alone in its process: its setup from the command line, the process
-/// bound to the CPUs of `cpu_affinity` if set, the CPU latency request of
-/// `cpu_dma_latency_us` held if set, its host ([`Host::process`]), then `run` on this thread
+/// bound to the CPUs of `cpu_affinity` if set, under real-time scheduling at
+/// `thread_priority` if set, the CPU latency request of `cpu_dma_latency_us` held if set,
+/// its host ([`Host::process`]), then `run` on this thread
 /// until it ends; an error is printed as `<name>: error: ...` and fails the process.
 pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
     name: &str,
@@ -203,6 +214,9 @@ pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
         // Before any other thread starts: the DDS and signal threads inherit it.
         if let Some(cpus) = setup.cpu_affinity().map_err(printed)? {
             bind_this_thread(&cpus).map_err(printed)?;
+        }
+        if let Some(priority) = setup.thread_priority().map_err(printed)? {
+            run_this_thread_realtime(priority).map_err(printed)?;
         }
         // Held until the process ends (the kernel drops it with the file, however it ends).
         let _latency = setup
@@ -349,8 +363,9 @@ impl RosNode {
         check: Option<ParameterCheck>,
     ) -> Result<Self, RosError> {
         let context = host.context.clone();
-        // `cpu_affinity` and `cpu_dma_latency_us` (applied at start-up by `node_main`, or
-        // `biped compose`) are declared, so a peer sees them, and a set from a peer is refused.
+        // `cpu_affinity`, `cpu_dma_latency_us` and `thread_priority` (applied at start-up by
+        // `node_main`, or `biped compose`) are declared, so a peer sees them, and a set from a
+        // peer is refused.
         let mut declared = declared.clone();
         if let Some(cpus) = setup.cpu_affinity()? {
             declared.insert(
@@ -364,8 +379,20 @@ impl RosNode {
                 ParameterValue::Integer(i64::from(us)),
             );
         }
+        if let Some(priority) = setup.thread_priority()? {
+            declared.insert(
+                THREAD_PRIORITY_PARAM.to_owned(),
+                ParameterValue::Integer(i64::from(priority)),
+            );
+        }
         let check: ParameterCheck = Box::new(move |name: &str, value: &ParameterValue| {
-            if name == CPU_AFFINITY_PARAM || name == CPU_DMA_LATENCY_PARAM {
+            if [
+                CPU_AFFINITY_PARAM,
+                CPU_DMA_LATENCY_PARAM,
+                THREAD_PRIORITY_PARAM,
+            ]
+            .contains(&name)
+            {
                 Err(read_at_startup_only(name))
             } else {
                 check.as_ref().map_or(Ok(()), |f| f(name, value))

@@ -163,12 +163,14 @@ pub fn read_at_startup() -> ParameterCheck {
 }
 
 /// The parameters every node takes besides its own: ROS's `use_sim_time`, `cpu_affinity`
-/// (the CPUs its process is bound to, [`crate::affinity`]) and `cpu_dma_latency_us` (a CPU
-/// latency request its process holds, [`crate::cpu_latency`]).
-pub const COMMON_PARAMS: [&str; 3] = [
+/// (the CPUs its process is bound to, [`crate::affinity`]), `cpu_dma_latency_us` (a CPU
+/// latency request its process holds, [`crate::cpu_latency`]) and `thread_priority` (its
+/// threads under real-time scheduling, [`crate::priority`]).
+pub const COMMON_PARAMS: [&str; 4] = [
     "use_sim_time",
     crate::affinity::CPU_AFFINITY_PARAM,
     crate::cpu_latency::CPU_DMA_LATENCY_PARAM,
+    crate::priority::THREAD_PRIORITY_PARAM,
 ];
 
 /// Rejects any parameter not in `known` (besides [`COMMON_PARAMS`]), naming it.
