@@ -203,8 +203,8 @@ pub(crate) fn printed(e: RosError) -> String {
 /// The `main` of a node alone in its process: its setup from the command line, the process
 /// bound to the CPUs of `cpu_affinity` if set, under real-time scheduling at
 /// `thread_priority` if set, the CPU latency request of `cpu_dma_latency_us` held if set,
-/// its host ([`Host::process`]), then `run` on this thread
-/// until it ends; an error is printed as `<name>: error: ...` and fails the process.
+/// its host ([`Host::process`]), then `run` on this thread until it ends; an error is
+/// printed as `<name>: error: ...` and fails the process.
 pub fn node_main<E: std::fmt::Display, F: Future<Output = Result<(), E>>>(
     name: &str,
     run: impl FnOnce(NodeSetup, Host) -> F,
