@@ -16,6 +16,9 @@
 //!
 //! `cargo build --release --workspace && cargo bench --bench walk_rtf` (the fleet runs in a
 //! private network namespace: root, `unshare -n`). Prints two Markdown tables.
+//! `-- --thread-priority P`: the fleets' nodes under real-time scheduling (their
+//! `thread_priority` parameter, given to every node in a `--params` file; `biped walk` itself,
+//! the recorder, stays normal).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::PathBuf;
@@ -47,7 +50,39 @@ fn bin_dir() -> PathBuf {
 }
 
 fn main() -> ExitCode {
-    // `cargo bench` passes `--bench`; nothing to parse.
+    // `cargo bench` passes `--bench`.
+    let mut priority = None;
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--bench" => {}
+            "--thread-priority" => {
+                let p = args.next().unwrap_or_default();
+                let value = serde_norway::from_str(&p).unwrap_or(serde_norway::Value::Null);
+                match node_runtime::priority::thread_priority_of(&value) {
+                    Ok(p) => priority = Some(p),
+                    Err(e) => {
+                        eprintln!("--thread-priority: {e}");
+                        return ExitCode::FAILURE;
+                    }
+                }
+            }
+            other => {
+                eprintln!("unknown argument `{other}` (options: --thread-priority P)");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    // Every node's parameter, through the one parameter file `biped walk` gives them all.
+    let params = priority.map(|p| {
+        let file = std::env::temp_dir().join(format!("biped-rtf-{}.yaml", std::process::id()));
+        std::fs::write(
+            &file,
+            format!("/**:\n  ros__parameters:\n    thread_priority: {p}\n"),
+        )
+        .expect("a parameter file in the temporary directory");
+        file
+    });
     let model = BipedModel::from_urdf_str(DEFAULT_URDF, None).expect("built-in robot");
     let plan = GaitPlanner::new(model, GaitParams::default())
         .expect("default gait")
@@ -105,6 +140,11 @@ fn main() -> ExitCode {
                 .args(["walk", "--steps", &STEPS.to_string(), "--out"])
                 .arg(&out)
                 .args(extra)
+                .args(
+                    params
+                        .iter()
+                        .flat_map(|f| [std::ffi::OsStr::new("--params"), f.as_os_str()]),
+                )
                 .env("ROS_DOMAIN_ID", "90")
                 .stdout(std::process::Stdio::null())
                 .status()
@@ -122,8 +162,15 @@ fn main() -> ExitCode {
         }
         fleets.push((what, reports));
     }
+    if let Some(file) = &params {
+        let _ = std::fs::remove_file(file);
+    }
+    let realtime = priority.map_or(String::new(), |p| {
+        format!("; the fleets' nodes under SCHED_FIFO at priority {p} (`thread_priority`)")
+    });
     println!(
-        "{} steps ({plan_s:.1} s of walk), median of {RUNS} runs, 1 kHz physics, 100 Hz control\n",
+        "{} steps ({plan_s:.1} s of walk), median of {RUNS} runs, 1 kHz physics, 100 Hz \
+         control{realtime}\n",
         STEPS
     );
     println!("| what runs | real-time factor | wall time per 10 ms tick | of bare physics |");
