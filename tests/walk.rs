@@ -1,7 +1,7 @@
 //! `biped walk`, the main job: the fleet (gait_planner, ik_solver, joint_bridge with the sim
 //! backend) and sim_bridge (MuJoCo) over DDS, in lockstep on simulated time. Each run is in a
 //! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 65-69, 75-78,
-//! 86, 96, 98, 99, 101, 102, 104-106), with discovery restricted to this host by `biped walk`
+//! 86, 96, 98, 99, 101, 102, 104-106, 215-217), with discovery restricted to this host by `biped walk`
 //! itself.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -191,6 +191,85 @@ fn a_walk_stopped_anywhere_is_the_same_walk_in_four_processes_and_composed() {
     assert_eq!(reports[0], reports[1], "the stopped walk differs composed");
     let _ = std::fs::remove_dir_all(&a);
     let _ = std::fs::remove_dir_all(&b);
+}
+
+/// Every node under real-time scheduling (`thread_priority`, SCHED_FIFO: a thread runs until
+/// it waits, never preempted by one it wakes), the four processes all bound to one CPU and,
+/// composed, the one process: nothing in the fleet waits for another thread by spinning, so
+/// the lockstep walk ends, and it is the same walk as with the normal scheduler, number for
+/// number.
+#[test]
+fn a_walk_with_every_node_under_real_time_scheduling_on_one_cpu_is_the_same_walk() {
+    let outs = [
+        out_dir("rt-normal"),
+        out_dir("rt-fifo-four"),
+        out_dir("rt-fifo-composed"),
+    ];
+    let params = outs[1].with_extension("yaml");
+    std::fs::write(
+        &params,
+        "/**:\n  ros__parameters:\n    thread_priority: 20\n    cpu_affinity: [0]\n",
+    )
+    .unwrap();
+    let composed_params = outs[2].with_extension("yaml");
+    // (`biped compose` refuses a node's cpu_affinity: its nodes share a process.)
+    std::fs::write(
+        &composed_params,
+        "/**:\n  ros__parameters:\n    thread_priority: 20\n",
+    )
+    .unwrap();
+    let (params, composed_params) = (params.to_str().unwrap(), composed_params.to_str().unwrap());
+    let mut reports = Vec::new();
+    for (out, domain, extra) in [
+        (&outs[0], 215, vec![]),
+        (&outs[1], 216, vec!["--params", params]),
+        (
+            &outs[2],
+            217,
+            vec!["--params", composed_params, "--composed"],
+        ),
+    ] {
+        let mut args = vec!["--steps", "4"];
+        args.extend(&extra);
+        let run = walk(domain, out, &args);
+        assert!(
+            run.status.success(),
+            "{extra:?}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let mut r = report(out);
+        assert!(r["fell"].is_null(), "{extra:?}: fell");
+        drop_wall_clock_figures(&mut r);
+        reports.push(r);
+        // Each node says what the kernel runs it under (its thread's policy, read back).
+        let logs: String = [
+            "composed",
+            "gait_planner",
+            "ik_solver",
+            "joint_bridge",
+            "sim_bridge",
+        ]
+        .iter()
+        .filter_map(|n| std::fs::read_to_string(out.join("logs").join(format!("{n}.log"))).ok())
+        .collect();
+        let said = logs
+            .matches("real-time scheduling: SCHED_FIFO at priority 20")
+            .count();
+        assert_eq!(
+            said,
+            if extra.is_empty() { 0 } else { 4 },
+            "{extra:?}: {logs}"
+        );
+    }
+    assert_eq!(
+        reports[0], reports[1],
+        "four processes under SCHED_FIFO on CPU 0"
+    );
+    assert_eq!(reports[0], reports[2], "composed under SCHED_FIFO");
+    for out in &outs {
+        let _ = std::fs::remove_dir_all(out);
+        let _ = std::fs::remove_file(out.with_extension("yaml"));
+    }
 }
 
 /// Without the joint bridge's sag compensation the hobby servos sag and the robot falls:

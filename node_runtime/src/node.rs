@@ -18,7 +18,9 @@ use crate::error::RosError;
 use crate::local::{Bus, Publisher, RosMessageBound, Subscription};
 use crate::log::Log;
 use crate::params::{ParameterCheck, node_parameters, read_at_startup_only};
-use crate::priority::{THREAD_PRIORITY_PARAM, run_this_thread_realtime, thread_priority_of};
+use crate::priority::{
+    SCHED_FIFO, THREAD_PRIORITY_PARAM, run_this_thread_realtime, thread_priority_of,
+};
 use crate::qos;
 
 /// Creates a node with parameter services and `/rosout` on, with the given parameters
@@ -407,6 +409,14 @@ impl RosNode {
             setup.use_sim_time(),
         )?;
         let log = Log::new(&node, &setup.args);
+        // What the kernel runs this thread under, said once (the policy, not the parameter:
+        // `biped compose` may have set a higher priority than this node's).
+        if let Ok((SCHED_FIFO, priority)) = crate::priority::this_thread_policy() {
+            log.info(
+                &node,
+                &format!("real-time scheduling: SCHED_FIFO at priority {priority}"),
+            );
+        }
         Ok(Self {
             node,
             setup,

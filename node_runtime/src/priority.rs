@@ -26,6 +26,10 @@ use crate::error::RosError;
 /// The parameter's name.
 pub const THREAD_PRIORITY_PARAM: &str = "thread_priority";
 
+/// Linux's number for the `SCHED_FIFO` policy, as `/proc/<pid>/task/<tid>/stat` shows it (0
+/// is the normal scheduler).
+pub const SCHED_FIFO: u32 = 1;
+
 /// The priority of a `thread_priority` value: an integer from 1 to 99 (Linux's `SCHED_FIFO`
 /// range); an error naming the value for anything else.
 pub fn thread_priority_of(value: &Value) -> Result<u8, RosError> {
@@ -65,8 +69,8 @@ pub fn run_this_thread_realtime(priority: u8) -> Result<(), RosError> {
 }
 
 /// The calling thread's scheduling policy and real-time priority, as the kernel reports them
-/// in `/proc/thread-self/stat` (policy 1 is `SCHED_FIFO`, 0 the normal scheduler; priority 0
-/// for a normal thread).
+/// in `/proc/thread-self/stat` ([`SCHED_FIFO`], or 0 for the normal scheduler; priority 0 for
+/// a normal thread).
 pub fn this_thread_policy() -> std::io::Result<(u32, u32)> {
     task_policy(&std::fs::read_to_string("/proc/thread-self/stat")?)
 }
@@ -154,7 +158,7 @@ mod tests {
             })
             .collect();
         let line = format!("4242 (RustDDS (x) Pa) S {}\n", fields.join(" "));
-        assert_eq!(task_policy(&line).unwrap(), (1, 50));
+        assert_eq!(task_policy(&line).unwrap(), (SCHED_FIFO, 50));
         assert!(task_policy("4242 RustDDS").is_err());
     }
 
@@ -172,8 +176,8 @@ mod tests {
         })
         .join()
         .unwrap();
-        assert_eq!(own, (1, 7));
-        assert_eq!(child, (1, 7));
+        assert_eq!(own, (SCHED_FIFO, 7));
+        assert_eq!(child, (SCHED_FIFO, 7));
         assert_eq!(this_thread_policy().unwrap(), (0, 0));
     }
 }
