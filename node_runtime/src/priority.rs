@@ -13,8 +13,12 @@
 //!
 //! It takes `CAP_SYS_NICE` (root has it) or an `RLIMIT_RTPRIO` at least as high (`ulimit -r`,
 //! `rtprio` in `/etc/security/limits.conf`); refused, the node does not start and says which.
-//! BENCHMARKS.md ("Real-time scheduling") has the pipeline measured with and without it,
-//! on an idle machine and beside a busy loop.
+//!
+//! Use it with `cpu_affinity` where idle CPUs are slow to wake (a virtual machine whose idle
+//! vCPUs halt): a woken real-time thread whose CPU runs another of the same priority is handed
+//! to an idle CPU rather than queued, and each such hand-off then pays that wake-up.
+//! BENCHMARKS.md ("Real-time scheduling") has the pipeline measured with and without it (bound,
+//! unbound, beside a busy loop) and the simulated walk.
 
 use serde_norway::Value;
 use thread_priority::{

@@ -163,6 +163,31 @@ fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
         .with_context(|| format!("gait_planner parameters in {}", path.display()))
 }
 
+/// The highest `thread_priority` a parameter file gives any node of the walk's fleet
+/// (`None`: none runs under real-time scheduling).
+fn fleet_thread_priority(path: &std::path::Path) -> anyhow::Result<Option<u8>> {
+    let args = node_runtime::RosArgs {
+        params_files: vec![path.display().to_string()],
+        ..Default::default()
+    };
+    let mut highest = None;
+    for node in [
+        "gait_planner",
+        "ik_solver",
+        "joint_bridge",
+        "sim_bridge",
+        "robot_state_publisher",
+    ] {
+        let params = node_runtime::node_parameters(&args, node, "/")?;
+        if let Some(v) = params.get(node_runtime::THREAD_PRIORITY_PARAM) {
+            let p = node_runtime::priority::thread_priority_of(v)
+                .with_context(|| format!("{node}'s parameters in {}", path.display()))?;
+            highest = highest.max(Some(p));
+        }
+    }
+    Ok(highest)
+}
+
 type TriggerClient =
     ros2_client::Client<biped_msgs::srv::TriggerRequest, biped_msgs::srv::TriggerResponse>;
 type SetBoolClient =
@@ -441,6 +466,20 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     };
     std::fs::create_dir_all(&o.out)
         .with_context(|| format!("cannot create output folder {}", o.out.display()))?;
+    // The recorder is the walk's measuring instrument: with the fleet's nodes under real-time
+    // scheduling it would fall behind them on a busy machine and miss samples (the fleet's
+    // publishers drop what a slow observer cannot take). It runs at their priority, its DDS
+    // threads too (started below, they inherit it).
+    if let Some(priority) = o
+        .params
+        .as_deref()
+        .map(fleet_thread_priority)
+        .transpose()?
+        .flatten()
+    {
+        node_runtime::priority::run_this_thread_realtime(priority)
+            .context("the walk's recorder, at the fleet's `thread_priority`")?;
+    }
 
     let DdsEnvironment {
         domain,
