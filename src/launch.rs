@@ -64,6 +64,16 @@ pub struct LaunchOptions {
     pub composed: bool,
 }
 
+/// Every node the fleet may run, in start order (`sim_bridge` only with the sim backend): the
+/// simulator last, so that a walk command sent before it starts is taken on simulated time.
+pub const FLEET_NODES: [&str; 5] = [
+    "joint_bridge",
+    "ik_solver",
+    "gait_planner",
+    "robot_state_publisher",
+    "sim_bridge",
+];
+
 /// The name of the process that runs the composed nodes (its log: `composed.log`).
 pub const COMPOSED: &str = "composed";
 
@@ -260,16 +270,10 @@ impl LaunchOptions {
 
     /// The nodes of this launch, each as its own process.
     fn separate_nodes(&self) -> Vec<&'static str> {
-        let mut n = vec![
-            "joint_bridge",
-            "ik_solver",
-            "gait_planner",
-            "robot_state_publisher",
-        ];
-        if self.backend == "sim" {
-            n.push("sim_bridge");
-        }
-        n
+        FLEET_NODES
+            .into_iter()
+            .filter(|&node| node != "sim_bridge" || self.backend == "sim")
+            .collect()
     }
 }
 

@@ -1566,20 +1566,27 @@ fn cpu_dma_latency_is_held_while_a_node_runs_and_a_bad_value_is_refused_naming_i
         "the machine's limit is {limit} µs, not its nodes' lowest"
     );
 
-    for (value, named) in [("-1", "-1"), ("0.5", "0.5"), ("fast", "fast")] {
-        let refused = common::in_netns("exec timeout 60 \"$@\"", 199)
-            .arg(bin_dir().join("ik_solver"))
-            .args(["--ros-args", "-p", &format!("cpu_dma_latency_us:={value}")])
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&refused.stderr);
-        assert_eq!(refused.status.code(), Some(1), "{value}: {err}");
-        assert!(
-            err.contains("ik_solver: error: parameters: parameter `cpu_dma_latency_us`: ")
-                && err.contains(named),
-            "{value}: {err}"
-        );
+    for value in ["-1", "0.5", "fast"] {
+        assert_ik_solver_refuses(199, "cpu_dma_latency_us", value);
     }
+}
+
+/// The ik_solver given `-p PARAM:=VALUE` does not start, and its error names the parameter
+/// and the value.
+fn assert_ik_solver_refuses(domain: u32, param: &str, value: &str) {
+    let refused = common::in_netns("exec timeout 60 \"$@\"", domain)
+        .arg(bin_dir().join("ik_solver"))
+        .args(["--ros-args", "-p", &format!("{param}:={value}")])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(1), "{value}: {err}");
+    assert!(
+        err.contains(&format!(
+            "ik_solver: error: parameters: parameter `{param}`: "
+        )) && err.contains(value),
+        "{value}: {err}"
+    );
 }
 
 /// The scheduling policy and real-time priority of every thread of process `pid`, with the
@@ -1675,17 +1682,6 @@ fn thread_priority_runs_every_thread_under_sched_fifo_and_a_refusal_says_what_it
     );
 
     for value in ["0", "100", "high"] {
-        let refused = common::in_netns("exec timeout 60 \"$@\"", 214)
-            .arg(bin_dir().join("ik_solver"))
-            .args(["--ros-args", "-p", &format!("thread_priority:={value}")])
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&refused.stderr);
-        assert_eq!(refused.status.code(), Some(1), "{value}: {err}");
-        assert!(
-            err.contains("ik_solver: error: parameters: parameter `thread_priority`: ")
-                && err.contains(value),
-            "{value}: {err}"
-        );
+        assert_ik_solver_refuses(214, "thread_priority", value);
     }
 }

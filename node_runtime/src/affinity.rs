@@ -78,12 +78,9 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
 
     use super::*;
+    use crate::params::tests::yaml;
     use nix::sched::{CpuSet, sched_getaffinity};
     use nix::unistd::Pid;
-
-    fn yaml(text: &str) -> Value {
-        serde_norway::from_str(text).unwrap()
-    }
 
     #[test]
     fn a_cpu_or_a_list_of_cpus_and_empty_is_not_bound() {

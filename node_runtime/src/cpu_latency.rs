@@ -91,10 +91,7 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
 
     use super::*;
-
-    fn yaml(text: &str) -> Value {
-        serde_norway::from_str(text).unwrap()
-    }
+    use crate::params::tests::yaml;
 
     #[test]
     fn microseconds_from_zero_to_the_kernels_largest() {

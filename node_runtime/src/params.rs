@@ -190,3 +190,13 @@ pub fn check_known(params: &BTreeMap<String, Value>, known: &[&str]) -> Result<(
     }
     Ok(())
 }
+
+#[cfg(test)]
+pub(crate) mod tests {
+    #![allow(clippy::unwrap_used)]
+
+    /// A parameter value written as YAML, as a parameter file or `-p` holds it.
+    pub(crate) fn yaml(text: &str) -> serde_norway::Value {
+        serde_norway::from_str(text).unwrap()
+    }
+}

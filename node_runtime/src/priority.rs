@@ -101,10 +101,7 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
 
     use super::*;
-
-    fn yaml(text: &str) -> Value {
-        serde_norway::from_str(text).unwrap()
-    }
+    use crate::params::tests::yaml;
 
     #[test]
     fn priorities_from_1_to_99() {

@@ -171,13 +171,7 @@ fn fleet_thread_priority(path: &std::path::Path) -> anyhow::Result<Option<u8>> {
         ..Default::default()
     };
     let mut highest = None;
-    for node in [
-        "gait_planner",
-        "ik_solver",
-        "joint_bridge",
-        "sim_bridge",
-        "robot_state_publisher",
-    ] {
+    for node in crate::launch::FLEET_NODES {
         let params = node_runtime::node_parameters(&args, node, "/")?;
         if let Some(v) = params.get(node_runtime::THREAD_PRIORITY_PARAM) {
             let p = node_runtime::priority::thread_priority_of(v)
