@@ -463,7 +463,8 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
     // The recorder is the walk's measuring instrument: with the fleet's nodes under real-time
     // scheduling it would fall behind them on a busy machine and miss samples (the fleet's
     // publishers drop what a slow observer cannot take). It runs at their priority, its DDS
-    // threads too (started below, they inherit it).
+    // threads too (started below, they inherit it), and so do the nodes it starts, unless
+    // their own `thread_priority` says otherwise.
     if let Some(priority) = o
         .params
         .as_deref()
