@@ -1476,13 +1476,11 @@ fn cpu_affinity_binds_every_thread_of_a_node_and_a_bad_cpu_is_refused_by_number(
         assert_eq!(cpus, &vec![cpu], "{name} (of {tasks:?})");
     }
 
-    let refused = common::in_netns("exec timeout 60 \"$@\"", 197)
-        .arg(bin_dir().join("ik_solver"))
-        .args(["--ros-args", "-p", "cpu_affinity:=[1023]"])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&refused.stderr);
-    assert_eq!(refused.status.code(), Some(1), "{err}");
+    let err = failed_start(
+        common::in_netns("exec timeout 60 \"$@\"", 197)
+            .arg(bin_dir().join("ik_solver"))
+            .args(["--ros-args", "-p", "cpu_affinity:=[1023]"]),
+    );
     assert!(
         err.contains(
             "ik_solver: error: parameters: parameter `cpu_affinity`: CPU [1023] is not one"
@@ -1490,14 +1488,12 @@ fn cpu_affinity_binds_every_thread_of_a_node_and_a_bad_cpu_is_refused_by_number(
         "{err}"
     );
 
-    let composed = common::in_netns("exec timeout 60 \"$@\"", 197)
-        .arg(bin_dir().join("biped"))
-        .args(["compose", "--node", "ik_solver", "--node", "joint_bridge"])
-        .args(["--ros-args", "-p", &format!("cpu_affinity:=[{cpu}]")])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&composed.stderr);
-    assert_eq!(composed.status.code(), Some(1), "{err}");
+    let err = failed_start(
+        common::in_netns("exec timeout 60 \"$@\"", 197)
+            .arg(bin_dir().join("biped"))
+            .args(["compose", "--node", "ik_solver", "--node", "joint_bridge"])
+            .args(["--ros-args", "-p", &format!("cpu_affinity:=[{cpu}]")]),
+    );
     assert!(
         err.contains("parameter `cpu_affinity` binds a node's own process"),
         "{err}"
@@ -1571,16 +1567,22 @@ fn cpu_dma_latency_is_held_while_a_node_runs_and_a_bad_value_is_refused_naming_i
     }
 }
 
+/// Runs `command`, which must fail to start (exit status 1); its standard error.
+fn failed_start(command: &mut std::process::Command) -> String {
+    let out = command.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    err
+}
+
 /// The ik_solver given `-p PARAM:=VALUE` does not start, and its error names the parameter
 /// and the value.
 fn assert_ik_solver_refuses(domain: u32, param: &str, value: &str) {
-    let refused = common::in_netns("exec timeout 60 \"$@\"", domain)
-        .arg(bin_dir().join("ik_solver"))
-        .args(["--ros-args", "-p", &format!("{param}:={value}")])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&refused.stderr);
-    assert_eq!(refused.status.code(), Some(1), "{value}: {err}");
+    let err = failed_start(
+        common::in_netns("exec timeout 60 \"$@\"", domain)
+            .arg(bin_dir().join("ik_solver"))
+            .args(["--ros-args", "-p", &format!("{param}:={value}")]),
+    );
     assert!(
         err.contains(&format!(
             "ik_solver: error: parameters: parameter `{param}`: "
@@ -1658,21 +1660,14 @@ fn thread_priority_runs_every_thread_under_sched_fifo_and_a_refusal_says_what_it
         assert_eq!(policy, &(FIFO, 40), "composed: {name} (of {tasks:?})");
     }
 
-    // Root without CAP_SYS_NICE (and this machine's RLIMIT_RTPRIO of 0): refused.
-    let refused = common::in_netns("exec timeout 60 \"$@\"", 214)
-        .args([
-            "setpriv",
-            "--bounding-set",
-            "-sys_nice",
-            "prlimit",
-            "--rtprio=0",
-        ])
-        .arg(bin_dir().join("ik_solver"))
-        .args(["--ros-args", "-p", "thread_priority:=50"])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&refused.stderr);
-    assert_eq!(refused.status.code(), Some(1), "{err}");
+    // Root without CAP_SYS_NICE, with an RLIMIT_RTPRIO of 0: refused.
+    let err = failed_start(
+        common::in_netns("exec timeout 60 \"$@\"", 214)
+            .args(["setpriv", "--bounding-set", "-sys_nice"])
+            .args(["prlimit", "--rtprio=0"])
+            .arg(bin_dir().join("ik_solver"))
+            .args(["--ros-args", "-p", "thread_priority:=50"]),
+    );
     assert!(
         err.contains(
             "ik_solver: error: parameter `thread_priority` = 50: cannot run the process under \
