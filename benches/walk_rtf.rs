@@ -17,8 +17,10 @@
 //! `cargo build --release --workspace && cargo bench --bench walk_rtf` (the fleet runs in a
 //! private network namespace: root, `unshare -n`). Prints two Markdown tables.
 //! `-- --thread-priority P`: the fleets' nodes under real-time scheduling (their
-//! `thread_priority` parameter, given to every node in a `--params` file; `biped walk` itself,
-//! the recorder, stays normal).
+//! `thread_priority` parameter, given to every node in a `--params` file; `biped walk` runs its
+//! recorder at that priority too). `-- --params FILE`: a parameter file of one's own for both
+//! fleets' walks instead, e.g. the shipped `config/realtime.yaml` (no per-node
+//! `cpu_affinity`: `biped compose` refuses it).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::path::PathBuf;
@@ -52,6 +54,7 @@ fn bin_dir() -> PathBuf {
 fn main() -> ExitCode {
     // `cargo bench` passes `--bench`.
     let mut priority = None;
+    let mut given_params: Option<PathBuf> = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -67,14 +70,29 @@ fn main() -> ExitCode {
                     }
                 }
             }
+            "--params" => match args.next().map(PathBuf::from) {
+                Some(file) if file.is_file() => given_params = Some(file),
+                other => {
+                    eprintln!("--params: {other:?} is not a file");
+                    return ExitCode::FAILURE;
+                }
+            },
             other => {
-                eprintln!("unknown argument `{other}` (options: --thread-priority P)");
+                eprintln!(
+                    "unknown argument `{other}` (options: --thread-priority P, --params FILE)"
+                );
                 return ExitCode::FAILURE;
             }
         }
     }
+    if priority.is_some() && given_params.is_some() {
+        eprintln!(
+            "--thread-priority and --params: one or the other (put thread_priority in the file)"
+        );
+        return ExitCode::FAILURE;
+    }
     // Every node's parameter, through the one parameter file `biped walk` gives them all.
-    let params = priority.map(|p| {
+    let generated = priority.map(|p| {
         let file = std::env::temp_dir().join(format!("biped-rtf-{}.yaml", std::process::id()));
         std::fs::write(
             &file,
@@ -83,6 +101,7 @@ fn main() -> ExitCode {
         .expect("a parameter file in the temporary directory");
         file
     });
+    let params = generated.clone().or(given_params.clone());
     let model = BipedModel::from_urdf_str(DEFAULT_URDF, None).expect("built-in robot");
     let plan = GaitPlanner::new(model, GaitParams::default())
         .expect("default gait")
@@ -162,12 +181,16 @@ fn main() -> ExitCode {
         }
         fleets.push((what, reports));
     }
-    if let Some(file) = &params {
+    if let Some(file) = &generated {
         let _ = std::fs::remove_file(file);
     }
-    let realtime = priority.map_or(String::new(), |p| {
-        format!("; the fleets' nodes under SCHED_FIFO at priority {p} (`thread_priority`)")
-    });
+    let realtime = match (priority, &given_params) {
+        (Some(p), _) => {
+            format!("; the fleets' nodes under SCHED_FIFO at priority {p} (`thread_priority`)")
+        }
+        (None, Some(file)) => format!("; every node's parameters from `{}`", file.display()),
+        (None, None) => String::new(),
+    };
     println!(
         "{} steps ({plan_s:.1} s of walk), median of {RUNS} runs, 1 kHz physics, 100 Hz \
          control{realtime}\n",

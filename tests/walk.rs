@@ -195,7 +195,8 @@ fn a_walk_stopped_anywhere_is_the_same_walk_in_four_processes_and_composed() {
 
 /// Every node under real-time scheduling (`thread_priority`, SCHED_FIFO: a thread runs until
 /// it waits, never preempted by one it wakes), the four processes all bound to one CPU and,
-/// composed, the one process: nothing in the fleet waits for another thread by spinning, so
+/// composed, the one process under the shipped `config/realtime.yaml` (priority 50 and a CPU
+/// latency request of 0 µs): nothing in the fleet waits for another thread by spinning, so
 /// the lockstep walk ends, and it is the same walk as with the normal scheduler, number for
 /// number.
 #[test]
@@ -211,22 +212,19 @@ fn a_walk_with_every_node_under_real_time_scheduling_on_one_cpu_is_the_same_walk
         "/**:\n  ros__parameters:\n    thread_priority: 20\n    cpu_affinity: [0]\n",
     )
     .unwrap();
-    let composed_params = outs[2].with_extension("yaml");
-    // (`biped compose` refuses a node's cpu_affinity: its nodes share a process.)
-    std::fs::write(
-        &composed_params,
-        "/**:\n  ros__parameters:\n    thread_priority: 20\n",
-    )
-    .unwrap();
-    let (params, composed_params) = (params.to_str().unwrap(), composed_params.to_str().unwrap());
+    // The file users are told to pass (`biped compose` refuses a node's cpu_affinity: its
+    // nodes share a process, so the four-process run has its own).
+    let shipped = common::root().join("config/realtime.yaml");
+    let (params, shipped) = (params.to_str().unwrap(), shipped.to_str().unwrap());
     let mut reports = Vec::new();
-    for (out, domain, extra) in [
-        (&outs[0], 215, vec![]),
-        (&outs[1], 216, vec!["--params", params]),
+    for (out, domain, extra, priority) in [
+        (&outs[0], 215, vec![], None),
+        (&outs[1], 216, vec!["--params", params], Some(20)),
         (
             &outs[2],
             217,
-            vec!["--params", composed_params, "--composed"],
+            vec!["--params", shipped, "--composed"],
+            Some(50),
         ),
     ] {
         let mut args = vec!["--steps", "4"];
@@ -253,11 +251,21 @@ fn a_walk_with_every_node_under_real_time_scheduling_on_one_cpu_is_the_same_walk
         .filter_map(|n| std::fs::read_to_string(out.join("logs").join(format!("{n}.log"))).ok())
         .collect();
         let said = logs
-            .matches("real-time scheduling: SCHED_FIFO at priority 20")
+            .matches("real-time scheduling: SCHED_FIFO at priority")
+            .count();
+        assert_eq!(said, priority.map_or(0, |_| 4), "{extra:?}: {logs}");
+        if let Some(p) = priority {
+            let at = format!("real-time scheduling: SCHED_FIFO at priority {p}\n");
+            assert_eq!(logs.matches(&at).count(), 4, "{extra:?}: {logs}");
+        }
+        // The shipped file's latency request, held (the limit it leaves is 0 µs: the lowest
+        // request any process holds).
+        let latency = logs
+            .matches("CPU latency request: 0 µs; the machine's limit is now 0 µs")
             .count();
         assert_eq!(
-            said,
-            if extra.is_empty() { 0 } else { 4 },
+            latency,
+            if out == &outs[2] { 4 } else { 0 },
             "{extra:?}: {logs}"
         );
     }

@@ -417,6 +417,16 @@ impl RosNode {
                 &format!("real-time scheduling: SCHED_FIFO at priority {priority}"),
             );
         }
+        // And the CPU latency request with the machine's limit it left (the lowest request
+        // any process holds), read back from the device.
+        if let Some(us) = setup.cpu_dma_latency_us()?
+            && let Ok(limit_us) = crate::cpu_latency::current_limit_us()
+        {
+            log.info(
+                &node,
+                &format!("CPU latency request: {us} µs; the machine's limit is now {limit_us} µs"),
+            );
+        }
         Ok(Self {
             node,
             setup,
