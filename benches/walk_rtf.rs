@@ -12,7 +12,7 @@
 //!
 //! For the two fleets, also the messaging work of one tick, from the walk's report
 //! (`work_per_tick`): CPU time and context switches of every process of the run, UDP
-//! datagrams sent in its private network namespace.
+//! datagrams sent in its private network namespace; and each process's share.
 //!
 //! `cargo build --release --workspace && cargo bench --bench walk_rtf` (the fleet runs in a
 //! private network namespace: root, `unshare -n`). Prints two Markdown tables.
@@ -242,6 +242,40 @@ fn main() -> ExitCode {
             m(reports, "/work_per_tick/cpu_ms"),
             m(reports, "/work_per_tick/context_switches"),
             m(reports, "/work_per_tick/udp_datagrams"),
+        );
+    }
+    // Where the CPU time goes: each process's share (`work_per_tick.by_process`).
+    let mut names: Vec<String> = fleets
+        .iter()
+        .flat_map(|(_, reports)| reports.iter())
+        .filter_map(|r| r.pointer("/work_per_tick/by_process")?.as_object())
+        .flat_map(|o| o.keys().cloned())
+        .collect();
+    names.sort();
+    names.dedup();
+    println!(
+        "\nEach process's CPU time and context switches a tick (`work_per_tick.by_process`), \
+         median of {RUNS} runs:\n"
+    );
+    println!("| process | four processes | composed |");
+    println!("|---|---:|---:|");
+    for name in &names {
+        let cell = |reports: &[serde_json::Value]| {
+            let cpu = m(reports, &format!("/work_per_tick/by_process/{name}/cpu_ms"));
+            let cs = m(
+                reports,
+                &format!("/work_per_tick/by_process/{name}/context_switches"),
+            );
+            if cpu.is_nan() {
+                "-".to_owned()
+            } else {
+                format!("{cpu:.3} ms, {cs:.1}")
+            }
+        };
+        println!(
+            "| {name} | {} | {} |",
+            cell(&fleets[0].1),
+            cell(&fleets[1].1)
         );
     }
     ExitCode::SUCCESS

@@ -566,11 +566,11 @@ impl Fleet {
         None
     }
 
-    /// The process ids of the running nodes.
-    pub fn pids(&self) -> Vec<u32> {
+    /// The running processes' names (a node's, or [`COMPOSED`]) and ids.
+    pub fn named_pids(&self) -> Vec<(&'static str, u32)> {
         self.running
             .iter()
-            .filter_map(|r| r.child.as_ref().map(Child::id))
+            .filter_map(|r| r.child.as_ref().map(|c| (r.name, c.id())))
             .collect()
     }
 

@@ -135,6 +135,47 @@ fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
         // The run records 38 s of simulated time: over 3000 ticks of 10 ms.
         assert!(work(r, "ticks") > 3000.0, "{}", r["work_per_tick"]);
     }
+    // Each process's share, by name: the fleet's, robot_state_publisher and the recorder
+    // (`biped_walk`); together the whole.
+    for (r, names) in [
+        (
+            &r1,
+            &[
+                "biped_walk",
+                "gait_planner",
+                "ik_solver",
+                "joint_bridge",
+                "robot_state_publisher",
+                "sim_bridge",
+            ][..],
+        ),
+        (
+            &r2,
+            &["biped_walk", "composed", "robot_state_publisher"][..],
+        ),
+    ] {
+        let by = r["work_per_tick"]["by_process"].as_object().unwrap();
+        assert_eq!(
+            by.keys().map(String::as_str).collect::<Vec<_>>(),
+            names,
+            "{by:?}"
+        );
+        let sum: f64 = by.values().map(|p| num(p, "cpu_ms")).sum();
+        assert!((sum - work(r, "cpu_ms")).abs() < 1e-9, "{sum} {by:?}");
+        // The simulator's process does the physics, 10 steps a tick, and is the busiest.
+        let sim = if by.contains_key("composed") {
+            "composed"
+        } else {
+            "sim_bridge"
+        };
+        for (name, p) in by {
+            assert!(num(p, "cpu_ms") > 0.0, "{name}: {p}");
+            assert!(
+                num(p, "cpu_ms") <= num(&by[sim], "cpu_ms"),
+                "{name}: {by:?}"
+            );
+        }
+    }
     let (separate, composed) = (work(&r1, "context_switches"), work(&r2, "context_switches"));
     assert!(
         composed < separate / 1.25,

@@ -424,9 +424,9 @@ impl StopDriver {
 /// The work so far of the fleet's processes and this one (its recorder), and the datagrams
 /// of the network namespace; `None` where `/proc` cannot tell (not Linux).
 fn run_work(fleet: &Fleet) -> Option<work::Work> {
-    let mut pids = fleet.pids();
-    pids.push(std::process::id());
-    work::Work::now(&pids).ok()
+    let mut processes = fleet.named_pids();
+    processes.push(("biped_walk", std::process::id()));
+    work::Work::now(&processes).ok()
 }
 
 /// Runs the walk.

@@ -273,7 +273,7 @@ pub fn joints_in_model_order(
 }
 
 /// What a run cost: its wall-clock times (s) and, over the stepping span, its work per tick.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct WallTimes {
     /// From `biped walk`'s start to the end of recording.
     pub total_s: f64,

@@ -3,12 +3,15 @@
 //! and the UDP datagrams sent in the network namespace (`/proc/net/snmp`). `biped walk`
 //! takes one snapshot at the first `/clock` and one at the end, so the report says what a
 //! lockstep tick costs in messaging work: a count, where the real-time factor follows the
-//! host's load.
+//! host's load. Per process too (`by_process`, by the name the run gives it): where a
+//! tick's CPU time goes.
+
+use std::collections::BTreeMap;
 
 use serde::Serialize;
 
 /// Cumulative counters at one instant.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Work {
     /// On-CPU time of every thread of the processes (ns).
     pub cpu_ns: u64,
@@ -16,10 +19,30 @@ pub struct Work {
     pub context_switches: u64,
     /// UDP datagrams sent in this network namespace (every process of it).
     pub udp_datagrams: u64,
+    /// The same two counters for each process, by its name.
+    pub by_process: BTreeMap<String, ProcessWork>,
+}
+
+/// One process's cumulative counters (every thread of it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ProcessWork {
+    /// On-CPU time (ns).
+    pub cpu_ns: u64,
+    /// Voluntary and involuntary context switches.
+    pub context_switches: u64,
+}
+
+/// One process's share of a tick's work.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ProcessTickWork {
+    /// CPU time per tick (ms).
+    pub cpu_ms: f64,
+    /// Context switches per tick.
+    pub context_switches: f64,
 }
 
 /// The work of one tick, averaged over the ticks between two snapshots.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct TickWork {
     /// Ticks the averages are over.
     pub ticks: u64,
@@ -30,12 +53,16 @@ pub struct TickWork {
     /// UDP datagrams sent in the network namespace per tick (every process of it: the
     /// run's alone in a private namespace, as the tests and the benches use).
     pub udp_datagrams: f64,
+    /// Each process's CPU time and context switches per tick, by its name (a process not
+    /// running at both snapshots, e.g. restarted, is left out).
+    pub by_process: BTreeMap<String, ProcessTickWork>,
 }
 
 impl Work {
-    /// The counters now, summed over every thread of `pids` (a process that is gone, or a
-    /// thread that ends while it is read, counts nothing).
-    pub fn now(pids: &[u32]) -> std::io::Result<Work> {
+    /// The counters now, summed over every thread of each `(name, pid)` and over all of
+    /// them (a process that is gone, or a thread that ends while it is read, counts
+    /// nothing).
+    pub fn now(processes: &[(&str, u32)]) -> std::io::Result<Work> {
         let snmp = std::fs::read_to_string("/proc/net/snmp")?;
         let udp_datagrams = out_datagrams(&snmp).ok_or_else(|| {
             std::io::Error::other("/proc/net/snmp has no Udp: OutDatagrams counter")
@@ -44,17 +71,23 @@ impl Work {
             udp_datagrams,
             ..Work::default()
         };
-        for pid in pids {
+        for &(name, pid) in processes {
             let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
                 continue;
             };
+            let mut p = ProcessWork::default();
             for task in tasks.flatten() {
                 let read = |f: &str| std::fs::read_to_string(task.path().join(f)).ok();
-                w.cpu_ns += read("schedstat").and_then(|s| on_cpu_ns(&s)).unwrap_or(0);
-                w.context_switches += read("status")
+                p.cpu_ns += read("schedstat").and_then(|s| on_cpu_ns(&s)).unwrap_or(0);
+                p.context_switches += read("status")
                     .and_then(|s| context_switches(&s))
                     .unwrap_or(0);
             }
+            w.cpu_ns += p.cpu_ns;
+            w.context_switches += p.context_switches;
+            let entry = w.by_process.entry(name.to_owned()).or_default();
+            entry.cpu_ns += p.cpu_ns;
+            entry.context_switches += p.context_switches;
         }
         Ok(w)
     }
@@ -66,6 +99,22 @@ impl Work {
             return None;
         }
         let n = ticks as f64;
+        let by_process = self
+            .by_process
+            .iter()
+            .filter_map(|(name, now)| {
+                let then = earlier.by_process.get(name)?;
+                Some((
+                    name.clone(),
+                    ProcessTickWork {
+                        cpu_ms: now.cpu_ns.checked_sub(then.cpu_ns)? as f64 * 1e-6 / n,
+                        context_switches: now.context_switches.checked_sub(then.context_switches)?
+                            as f64
+                            / n,
+                    },
+                ))
+            })
+            .collect();
         Some(TickWork {
             ticks,
             cpu_ms: self.cpu_ns.checked_sub(earlier.cpu_ns)? as f64 * 1e-6 / n,
@@ -74,6 +123,7 @@ impl Work {
                 .checked_sub(earlier.context_switches)? as f64
                 / n,
             udp_datagrams: self.udp_datagrams.checked_sub(earlier.udp_datagrams)? as f64 / n,
+            by_process,
         })
     }
 }
@@ -128,17 +178,37 @@ mod tests {
 
     #[test]
     fn the_work_of_a_tick_is_the_difference_over_the_ticks() {
+        let process = |cpu_ns, context_switches| ProcessWork {
+            cpu_ns,
+            context_switches,
+        };
         let start = Work {
             cpu_ns: 1_000_000,
             context_switches: 100,
             udp_datagrams: 50,
+            by_process: [
+                ("sim_bridge".to_owned(), process(600_000, 60)),
+                ("ik_solver".to_owned(), process(400_000, 40)),
+                // Restarted between the snapshots: its counters went back.
+                ("gait_planner".to_owned(), process(9_000_000, 900)),
+            ]
+            .into(),
         };
         let end = Work {
             cpu_ns: 3_000_000_000,
             context_switches: 40_100,
             udp_datagrams: 34_050,
+            by_process: [
+                ("sim_bridge".to_owned(), process(2_000_600_000, 30_060)),
+                ("ik_solver".to_owned(), process(999_400_000, 10_040)),
+                ("gait_planner".to_owned(), process(5_000, 3)),
+                // Not there at the start.
+                ("joint_bridge".to_owned(), process(7_000, 7)),
+            ]
+            .into(),
         };
-        // 2000 ticks: 2.999 s of CPU, 40 000 switches, 34 000 datagrams.
+        // 2000 ticks: 2.999 s of CPU, 40 000 switches, 34 000 datagrams; sim_bridge 2 s
+        // and 30 000 switches of them, ik_solver 0.999 s and 10 000.
         assert_eq!(
             end.per_tick_since(&start, 2000),
             Some(TickWork {
@@ -146,6 +216,23 @@ mod tests {
                 cpu_ms: 1.4995,
                 context_switches: 20.0,
                 udp_datagrams: 17.0,
+                by_process: [
+                    (
+                        "ik_solver".to_owned(),
+                        ProcessTickWork {
+                            cpu_ms: 0.4995,
+                            context_switches: 5.0,
+                        }
+                    ),
+                    (
+                        "sim_bridge".to_owned(),
+                        ProcessTickWork {
+                            cpu_ms: 1.0,
+                            context_switches: 15.0,
+                        }
+                    ),
+                ]
+                .into(),
             })
         );
         assert_eq!(end.per_tick_since(&start, 0), None);
@@ -154,16 +241,24 @@ mod tests {
 
     #[test]
     fn this_process_is_counted() {
-        let me = Work::now(&[std::process::id()]).unwrap();
+        let me = Work::now(&[("me", std::process::id())]).unwrap();
         // Spin 20 ms on this thread: its on-CPU time grows (by how much depends on how
         // busy the machine is).
         let t = std::time::Instant::now();
         while t.elapsed() < std::time::Duration::from_millis(20) {
             std::hint::black_box(0u64);
         }
-        let later = Work::now(&[std::process::id()]).unwrap();
+        let later = Work::now(&[("me", std::process::id())]).unwrap();
         assert!(later.cpu_ns > me.cpu_ns, "{me:?} -> {later:?}");
         assert!(later.context_switches >= me.context_switches);
-        assert_eq!(Work::now(&[u32::MAX]).unwrap().cpu_ns, 0, "no such process");
+        // The process's own counters are the totals (it is the only one).
+        assert_eq!(later.by_process["me"].cpu_ns, later.cpu_ns);
+        assert_eq!(
+            later.by_process["me"].context_switches,
+            later.context_switches
+        );
+        let none = Work::now(&[("gone", u32::MAX)]).unwrap();
+        assert_eq!(none.cpu_ns, 0, "no such process");
+        assert!(none.by_process.is_empty(), "{none:?}");
     }
 }
