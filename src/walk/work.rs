@@ -26,6 +26,9 @@ pub struct Work {
 /// One process's cumulative counters (every thread of it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ProcessWork {
+    /// Its process id (a process of the same name with another id is another process: one
+    /// restarted).
+    pub pid: u32,
     /// On-CPU time (ns).
     pub cpu_ns: u64,
     /// Voluntary and involuntary context switches.
@@ -54,7 +57,7 @@ pub struct TickWork {
     /// run's alone in a private namespace, as the tests and the benches use).
     pub udp_datagrams: f64,
     /// Each process's CPU time and context switches per tick, by its name (a process not
-    /// running at both snapshots, e.g. restarted, is left out).
+    /// running at both snapshots, one restarted included, is left out).
     pub by_process: BTreeMap<String, ProcessTickWork>,
 }
 
@@ -75,7 +78,10 @@ impl Work {
             let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
                 continue;
             };
-            let mut p = ProcessWork::default();
+            let mut p = ProcessWork {
+                pid,
+                ..ProcessWork::default()
+            };
             for task in tasks.flatten() {
                 let read = |f: &str| std::fs::read_to_string(task.path().join(f)).ok();
                 p.cpu_ns += read("schedstat").and_then(|s| on_cpu_ns(&s)).unwrap_or(0);
@@ -85,9 +91,7 @@ impl Work {
             }
             w.cpu_ns += p.cpu_ns;
             w.context_switches += p.context_switches;
-            let entry = w.by_process.entry(name.to_owned()).or_default();
-            entry.cpu_ns += p.cpu_ns;
-            entry.context_switches += p.context_switches;
+            w.by_process.insert(name.to_owned(), p);
         }
         Ok(w)
     }
@@ -103,7 +107,7 @@ impl Work {
             .by_process
             .iter()
             .filter_map(|(name, now)| {
-                let then = earlier.by_process.get(name)?;
+                let then = earlier.by_process.get(name).filter(|t| t.pid == now.pid)?;
                 Some((
                     name.clone(),
                     ProcessTickWork {
@@ -178,7 +182,8 @@ mod tests {
 
     #[test]
     fn the_work_of_a_tick_is_the_difference_over_the_ticks() {
-        let process = |cpu_ns, context_switches| ProcessWork {
+        let process = |pid, cpu_ns, context_switches| ProcessWork {
+            pid,
             cpu_ns,
             context_switches,
         };
@@ -187,10 +192,10 @@ mod tests {
             context_switches: 100,
             udp_datagrams: 50,
             by_process: [
-                ("sim_bridge".to_owned(), process(600_000, 60)),
-                ("ik_solver".to_owned(), process(400_000, 40)),
-                // Restarted between the snapshots: its counters went back.
-                ("gait_planner".to_owned(), process(9_000_000, 900)),
+                ("sim_bridge".to_owned(), process(10, 600_000, 60)),
+                ("ik_solver".to_owned(), process(11, 400_000, 40)),
+                // Restarted between the snapshots (another id), its new counters higher.
+                ("gait_planner".to_owned(), process(12, 9_000, 9)),
             ]
             .into(),
         };
@@ -199,11 +204,11 @@ mod tests {
             context_switches: 40_100,
             udp_datagrams: 34_050,
             by_process: [
-                ("sim_bridge".to_owned(), process(2_000_600_000, 30_060)),
-                ("ik_solver".to_owned(), process(999_400_000, 10_040)),
-                ("gait_planner".to_owned(), process(5_000, 3)),
+                ("sim_bridge".to_owned(), process(10, 2_000_600_000, 30_060)),
+                ("ik_solver".to_owned(), process(11, 999_400_000, 10_040)),
+                ("gait_planner".to_owned(), process(13, 500_000, 300)),
                 // Not there at the start.
-                ("joint_bridge".to_owned(), process(7_000, 7)),
+                ("joint_bridge".to_owned(), process(14, 7_000, 7)),
             ]
             .into(),
         };
@@ -252,6 +257,7 @@ mod tests {
         assert!(later.cpu_ns > me.cpu_ns, "{me:?} -> {later:?}");
         assert!(later.context_switches >= me.context_switches);
         // The process's own counters are the totals (it is the only one).
+        assert_eq!(later.by_process["me"].pid, std::process::id());
         assert_eq!(later.by_process["me"].cpu_ns, later.cpu_ns);
         assert_eq!(
             later.by_process["me"].context_switches,
