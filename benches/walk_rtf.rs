@@ -101,7 +101,7 @@ fn main() -> ExitCode {
         .expect("a parameter file in the temporary directory");
         file
     });
-    let params = generated.clone().or(given_params.clone());
+    let params = generated.as_ref().or(given_params.as_ref());
     let model = BipedModel::from_urdf_str(DEFAULT_URDF, None).expect("built-in robot");
     let plan = GaitPlanner::new(model, GaitParams::default())
         .expect("default gait")

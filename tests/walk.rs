@@ -28,6 +28,21 @@ fn report(out: &Path) -> Value {
     serde_json::from_str(&text).unwrap()
 }
 
+/// `biped walk ARGS --out OUT` in a private network namespace: it succeeded and the robot did
+/// not fall (`what` names the run in a failure); its report.
+fn walked(domain_id: u32, out: &Path, args: &[&str], what: &str) -> Value {
+    let run = walk(domain_id, out, args);
+    assert!(
+        run.status.success(),
+        "{what}: biped walk failed:\n{}\n{}",
+        String::from_utf8_lossy(&run.stdout),
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let r = report(out);
+    assert!(r["fell"].is_null(), "{what}: the robot fell: {}", r["fell"]);
+    r
+}
+
 /// A report without what depends on the machine's speed (wall time, real-time factor, the
 /// work a tick cost): what two lockstep runs of the same walk must share, number for number.
 fn drop_wall_clock_figures(report: &mut Value) {
@@ -53,16 +68,8 @@ fn num(v: &Value, key: &str) -> f64 {
 #[test]
 fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
     let (a, b) = (out_dir("twenty-a"), out_dir("twenty-b"));
-    let first = walk(67, &a, &["--steps", "20"]);
-    let stdout = String::from_utf8_lossy(&first.stdout);
-    let stderr = String::from_utf8_lossy(&first.stderr);
-    assert!(
-        first.status.success(),
-        "biped walk failed:\n{stdout}\n{stderr}"
-    );
-    let r = report(&a);
+    let r = walked(67, &a, &["--steps", "20"], "twenty steps");
     eprintln!("{}", serde_json::to_string_pretty(&r).unwrap());
-    assert!(r["fell"].is_null(), "the robot fell: {}", r["fell"]);
     assert!(num(&r, "max_tilt_deg") < 5.0);
     assert!(num(&r, "heading_drift_deg") < 5.0);
     assert!(num(&r, "cop_inside_fraction") >= 0.99);
@@ -103,12 +110,7 @@ fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
         assert!(svg.starts_with("<svg") && svg.len() > 10_000, "{f}");
     }
 
-    let second = walk(68, &b, &["--steps", "20", "--composed"]);
-    assert!(
-        second.status.success(),
-        "second run failed: {}",
-        String::from_utf8_lossy(&second.stderr)
-    );
+    let mut r2 = walked(68, &b, &["--steps", "20", "--composed"], "composed");
     // One process ran the three nodes (its log has each node's lines), none its own.
     let composed = std::fs::read_to_string(b.join("logs/composed.log")).unwrap();
     for node in ["/gait_planner", "/ik_solver", "/joint_bridge"] {
@@ -118,7 +120,6 @@ fn the_fleet_walks_twenty_steps_in_physics_the_same_way_twice() {
         );
     }
     assert!(!b.join("logs/joint_bridge.log").exists());
-    let mut r2 = report(&b);
     let mut r1 = r.clone();
     // The messaging work of a tick, counted over the same ticks. Composed, the lockstep's
     // hops between the four nodes are in-process calls: no DDS thread wakes for them and no
@@ -213,14 +214,7 @@ fn a_walk_stopped_anywhere_is_the_same_walk_in_four_processes_and_composed() {
         if composed {
             all.push("--composed");
         }
-        let run = walk(domain, out, &all);
-        assert!(
-            run.status.success(),
-            "composed {composed}: {}",
-            String::from_utf8_lossy(&run.stderr)
-        );
-        let mut r = report(out);
-        assert!(r["fell"].is_null(), "composed {composed}: fell");
+        let mut r = walked(domain, out, &all, &format!("composed {composed}"));
         let stops = r["stops"].as_array().unwrap();
         assert_eq!(stops.len(), 4, "composed {composed}: {stops:?}");
         for e in stops {
@@ -270,14 +264,7 @@ fn a_walk_with_every_node_under_real_time_scheduling_on_one_cpu_is_the_same_walk
     ] {
         let mut args = vec!["--steps", "4"];
         args.extend(&extra);
-        let run = walk(domain, out, &args);
-        assert!(
-            run.status.success(),
-            "{extra:?}: {}",
-            String::from_utf8_lossy(&run.stderr)
-        );
-        let mut r = report(out);
-        assert!(r["fell"].is_null(), "{extra:?}: fell");
+        let mut r = walked(domain, out, &args, &format!("{extra:?}"));
         drop_wall_clock_figures(&mut r);
         reports.push(r);
         // Each node says what the kernel runs it under (its thread's policy, read back).
@@ -330,16 +317,8 @@ fn walk_twist(domain: u32, name: &str, args: &[&str], twist: &str) -> Value {
     let twist_arg = format!("--twist={twist}");
     let mut all = args.to_vec();
     all.push(&twist_arg);
-    let run = walk(domain, &out, &all);
-    assert!(
-        run.status.success(),
-        "biped walk {name} failed:\n{}\n{}",
-        String::from_utf8_lossy(&run.stdout),
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let r = report(&out);
+    let r = walked(domain, &out, &all, name);
     eprintln!("{name}: {}", serde_json::to_string_pretty(&r).unwrap());
-    assert!(r["fell"].is_null(), "{name}: the robot fell: {}", r["fell"]);
     r
 }
 
@@ -586,7 +565,7 @@ fn a_scene_robot_walks_through_the_fleet_with_its_joint_map() {
     let data = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("sim_bridge/tests/data");
     let scene = data.join("biped20_scene.xml");
     let map = data.join("biped20_scene_map.yaml");
-    let run = walk(
+    let r = walked(
         59,
         &out,
         &[
@@ -597,14 +576,8 @@ fn a_scene_robot_walks_through_the_fleet_with_its_joint_map() {
             "--joint-map",
             map.to_str().unwrap(),
         ],
+        "the MJCF scene",
     );
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let r = report(&out);
-    assert!(r["fell"].is_null());
     let (d, planned) = (num(&r, "distance_m"), num(&r, "planned_distance_m"));
     assert!(
         (d - planned).abs() < 0.1 * planned,
@@ -628,15 +601,8 @@ fn the_op3_layout_robot_walks_ten_steps_through_the_fleet_in_its_own_scene() {
     let mut args = vec!["--steps", "10"];
     let scene = op3_scene_args();
     args.extend(scene.iter().map(String::as_str));
-    let run = walk(86, &out, &args);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let r = report(&out);
+    let r = walked(86, &out, &args, "the OP3-layout robot");
     eprintln!("{}", serde_json::to_string_pretty(&r).unwrap());
-    assert!(r["fell"].is_null());
     let (d, planned) = (num(&r, "distance_m"), num(&r, "planned_distance_m"));
     assert!(
         (d - planned).abs() < 0.1 * planned,
@@ -720,18 +686,11 @@ fn both_robots_walk_twenty_steps_at_the_issue_s_speed_with_their_fast_parameters
         let out = out_dir(name);
         let mut args = vec!["--steps", "20"];
         args.extend(extra.iter().map(String::as_str));
-        let run = walk(domain, &out, &args);
-        assert!(
-            run.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&run.stderr)
-        );
-        let r = report(&out);
+        let r = walked(domain, &out, &args, name);
         eprintln!(
             "{name}: {} m/s, CoP inside {}, slip {} m, tilt {} deg",
             r["speed_m_s"], r["cop_inside_fraction"], r["max_foot_slip_m"], r["max_tilt_deg"]
         );
-        assert!(r["fell"].is_null(), "{name}");
         let v = num(&r, "speed_m_s");
         assert!(v >= speed, "{name}: {v} m/s < {speed}");
         assert!(num(&r, "cop_inside_fraction") >= 0.99, "{name}");
@@ -777,18 +736,11 @@ fn stops_anywhere_through_the_fleet(
         Stop::Pause => ("--pause-at", "pause"),
     };
     all.extend([flag, &instants]);
-    let run = walk(domain, &out, &all);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let r = report(&out);
+    let r = walked(domain, &out, &all, &format!("{kind}s at {instants}"));
     let stops = r["stops"].as_array().unwrap();
     for e in stops {
         eprintln!("{e}");
     }
-    assert!(r["fell"].is_null());
     assert_eq!(stops.len(), 20, "{instants}");
     let asked: Vec<f64> = instants.split(',').map(|t| t.parse().unwrap()).collect();
     let mut loaded_soles = 0;

@@ -375,7 +375,8 @@ impl RosNode {
                 ParameterValue::IntegerArray(cpus.iter().map(|&c| c as i64).collect()),
             );
         }
-        if let Some(us) = setup.cpu_dma_latency_us()? {
+        let latency_us = setup.cpu_dma_latency_us()?;
+        if let Some(us) = latency_us {
             declared.insert(
                 CPU_DMA_LATENCY_PARAM.to_owned(),
                 ParameterValue::Integer(i64::from(us)),
@@ -419,7 +420,7 @@ impl RosNode {
         }
         // And the CPU latency request with the machine's limit it left (the lowest request
         // any process holds), read back from the device.
-        if let Some(us) = setup.cpu_dma_latency_us()?
+        if let Some(us) = latency_us
             && let Ok(limit_us) = crate::cpu_latency::current_limit_us()
         {
             log.info(
