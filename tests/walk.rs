@@ -28,16 +28,11 @@ fn report(out: &Path) -> Value {
     serde_json::from_str(&text).unwrap()
 }
 
-/// `biped walk ARGS --out OUT` in a private network namespace: it succeeded and the robot did
-/// not fall (`what` names the run in a failure); its report.
+/// `biped walk ARGS --out OUT` in a private network namespace: it succeeded
+/// ([`common::biped_walk_ok`]) and the robot did not fall (`what` names the run then); its
+/// report.
 fn walked(domain_id: u32, out: &Path, args: &[&str], what: &str) -> Value {
-    let run = walk(domain_id, out, args);
-    assert!(
-        run.status.success(),
-        "{what}: biped walk failed:\n{}\n{}",
-        String::from_utf8_lossy(&run.stdout),
-        String::from_utf8_lossy(&run.stderr)
-    );
+    common::biped_walk_ok(domain_id, out, args);
     let r = report(out);
     assert!(r["fell"].is_null(), "{what}: the robot fell: {}", r["fell"]);
     r
