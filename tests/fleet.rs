@@ -1316,23 +1316,7 @@ fn the_simulated_robot_stands_through_an_estop_and_each_node_killed_mid_walk() {
 #[test]
 fn a_best_effort_clock_drives_a_node_on_simulated_time() {
     let v = peer("clock", 92);
-    assert_eq!(
-        v["matched"], true,
-        "the /clock publisher never matched: {}",
-        v["exits"]
-    );
-    let sent: Vec<i64> = v["sent"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_i64().unwrap())
-        .collect();
-    let stamps: Vec<i64> = v["phase_stamps"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_i64().unwrap())
-        .collect();
+    let (sent, stamps) = clock_and_phase_stamps(&v);
     // The planner runs at 100 Hz and the clock advances 10 ms per message: most of the
     // ~400 clock values become a tick (best effort may drop a few on a busy machine).
     assert!(
@@ -1347,10 +1331,74 @@ fn a_best_effort_clock_drives_a_node_on_simulated_time() {
             "phase stamped {s}, not a /clock value sent"
         );
     }
+    // The last value, said six times, is the last tick.
+    assert_eq!(stamps.iter().max(), sent.last());
     assert_eq!(
         v["exits"]["gait_planner"]["returncode"], 0,
         "{}",
         v["exits"]
+    );
+}
+
+/// The `/clock` values the clock scenario sent and the `gait/phase` stamps it received (ns).
+fn clock_and_phase_stamps(v: &Value) -> (Vec<i64>, Vec<i64>) {
+    assert_eq!(
+        v["matched"], true,
+        "the /clock publisher never matched: {}",
+        v["exits"]
+    );
+    let ns = |key: &str| -> Vec<i64> {
+        v[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_i64().unwrap())
+            .collect()
+    };
+    (ns("sent"), ns("phase_stamps"))
+}
+
+/// With `plan_ahead` the planner sends tick k's messages at `/clock` k - 1: every phase it
+/// publishes is stamped one period (10 ms at 100 Hz) after a `/clock` value sent, but for
+/// the first `/clock` it heard, which gets its own tick too; the last value, said six times
+/// as a lockstep simulator says a tick while it waits, gets the phase of the tick after it,
+/// a time no `/clock` carried. Without `use_sim_time` the parameter is refused, naming it
+/// and what it needs (on the monotonic clock a command is taken when it comes: there is no
+/// tick to be ahead of).
+#[test]
+fn a_planner_ahead_sends_each_tick_one_period_before_its_clock() {
+    let v = peer_with_params(
+        "clock",
+        218,
+        Some(common::root().join("tests/data/plan_ahead.yaml")),
+    );
+    let (sent, stamps) = clock_and_phase_stamps(&v);
+    assert!(stamps.len() > sent.len() / 2, "{} phases", stamps.len());
+    let period_ns = 10_000_000;
+    let first = stamps[0];
+    assert!(sent.contains(&first), "first phase stamped {first}");
+    for s in &stamps[1..] {
+        assert!(
+            sent.contains(&(s - period_ns)),
+            "phase stamped {s}: not one period after a /clock value sent"
+        );
+    }
+    let last = *sent.last().unwrap();
+    assert_eq!(stamps.iter().max(), Some(&(last + period_ns)));
+    assert_eq!(
+        v["exits"]["gait_planner"]["returncode"], 0,
+        "{}",
+        v["exits"]
+    );
+
+    let err = failed_start(
+        common::in_netns("exec timeout 60 \"$@\"", 218)
+            .arg(bin_dir().join("gait_planner"))
+            .args(["--ros-args", "-p", "plan_ahead:=true"]),
+    );
+    assert!(
+        err.contains("`plan_ahead` = true needs `use_sim_time` = true"),
+        "{err}"
     );
 }
 

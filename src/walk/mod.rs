@@ -153,7 +153,7 @@ fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
     };
     let mut map = serde_norway::Mapping::new();
     for (k, v) in node_runtime::node_parameters(&args, "gait_planner", "/")? {
-        if !["robot_description_file", "leg_map_file"].contains(&k.as_str())
+        if !gait_planner::node::NODE_PARAMS.contains(&k.as_str())
             && !node_runtime::COMMON_PARAMS.contains(&k.as_str())
         {
             map.insert(serde_norway::Value::String(k), v);

@@ -527,8 +527,10 @@ def scenario_lifecycle(bin_dir, params):
 
 def scenario_clock(bin_dir, params):
     """The planner on simulated time, its /clock published the way `ros2 bag play --clock`
-    and most simulators publish it: best effort (rclcpp's ClockQoS, depth 1). Records the
-    /gait/phase stamps it publishes and the clock values sent."""
+    and most simulators publish it: best effort (rclcpp's ClockQoS, depth 1), 4 s of 10 ms
+    steps, then the last value said again five times, 50 ms apart, as a lockstep simulator
+    waiting for its answer does. Records the /gait/phase stamps it publishes and the clock
+    values sent (each once)."""
     from rosgraph_msgs.msg import Clock
     from builtin_interfaces.msg import Time
     procs = start_nodes(bin_dir, params, {"gait_planner": ["-p", "use_sim_time:=true"]}, only=["gait_planner"])
@@ -544,6 +546,9 @@ def scenario_clock(bin_dir, params):
         pub.publish(Clock(clock=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
         out["sent"].append(ns)
         peer.spin(0.01)
+    for _ in range(5):
+        pub.publish(Clock(clock=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
+        peer.spin(0.05)
     peer.spin(0.5)
     out["phase_stamps"] = [p["stamp"] for p in peer.phases]
     out["exits"] = stop_nodes(procs)

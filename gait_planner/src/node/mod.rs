@@ -38,6 +38,15 @@
 //! `walk_command` with a `start_time` is taken at the first tick at or after it; the same
 //! stamped command received again is taken once; a stop, when taken, also cancels the walks
 //! still waiting for their start time; at most 64 commands wait (more are dropped, warned).
+//!
+//! With `plan_ahead` (read at start; needs `use_sim_time`) tick k's messages go out at the
+//! `/clock` of tick k - 1, stamped with tick k's time (at the first tick, both): the joint
+//! bridge holds a command until the tick it is stamped for, so it has tick k's when `/clock`
+//! k comes, and a lockstep simulator's tick waits for one hop (joint_bridge) instead of
+//! three (planner → IK → bridge), the planner and the IK working while the simulator steps.
+//! The joints get the same targets at the same ticks; what the planner reads (commands,
+//! the bridge's hold, `joint_states` for the odometry and the restart guard) it reads one
+//! tick earlier, as a planner a period ahead of its robot would.
 
 mod markers;
 
@@ -65,6 +74,16 @@ const LEG_MAP_PARAM: &str = "leg_map_file";
 /// Whether the odometry is also sent as the TF edge odom → base link.
 const ODOM_TF_PARAM: &str = "publish_odom_tf";
 const STAND_PARAM: &str = "stand_at_start";
+/// Whether tick k's messages go out at `/clock` k - 1, a tick ahead (simulated time only).
+const AHEAD_PARAM: &str = "plan_ahead";
+/// The node's own parameters, beside the gait's ([`GaitParams`]), read at start only.
+pub const NODE_PARAMS: [&str; 5] = [
+    ROBOT_PARAM,
+    LEG_MAP_PARAM,
+    ODOM_TF_PARAM,
+    STAND_PARAM,
+    AHEAD_PARAM,
+];
 
 /// What a timing search off the control loop answers: the checked planner, or why not.
 type SearchResult = Result<GaitPlanner, crate::GaitError>;
@@ -133,9 +152,7 @@ fn gait_params(
     let mut map = serde_norway::Mapping::new();
     for (k, v) in params {
         let k_str = k.as_str();
-        if ![ROBOT_PARAM, LEG_MAP_PARAM, ODOM_TF_PARAM, STAND_PARAM].contains(&k_str)
-            && !node_runtime::COMMON_PARAMS.contains(&k_str)
-        {
+        if !NODE_PARAMS.contains(&k_str) && !node_runtime::COMMON_PARAMS.contains(&k_str) {
             map.insert(serde_norway::Value::String(k.clone()), v.clone());
         }
     }
@@ -148,6 +165,7 @@ fn declared(
     leg_map_file: &str,
     odom_tf: bool,
     stand_at_start: bool,
+    plan_ahead: bool,
 ) -> anyhow::Result<std::collections::BTreeMap<String, ParameterValue>> {
     let mut out = std::collections::BTreeMap::new();
     if let serde_norway::Value::Mapping(m) = serde_norway::to_value(params)? {
@@ -166,6 +184,7 @@ fn declared(
     );
     out.insert(ODOM_TF_PARAM.into(), ParameterValue::Boolean(odom_tf));
     out.insert(STAND_PARAM.into(), ParameterValue::Boolean(stand_at_start));
+    out.insert(AHEAD_PARAM.into(), ParameterValue::Boolean(plan_ahead));
     Ok(out)
 }
 
@@ -506,6 +525,12 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let leg_map_file = setup.str_param(LEG_MAP_PARAM, "")?;
     let odom_tf = setup.bool_param(ODOM_TF_PARAM, true)?;
     let stand_at_start = setup.bool_param(STAND_PARAM, true)?;
+    let plan_ahead = setup.bool_param(AHEAD_PARAM, false)?;
+    if plan_ahead && !setup.use_sim_time() {
+        anyhow::bail!(
+            "parameter `{AHEAD_PARAM}` = true needs `use_sim_time` = true: a tick ahead of a lockstep simulator's `/clock`; on the monotonic clock the joint bridge takes each command when it comes"
+        );
+    }
     let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     let mut params = gait_params(&setup.params)?;
     let mut planner = GaitPlanner::new(model.clone(), params.clone())?;
@@ -520,7 +545,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let check = {
         let (walking, shared, model) = (walking.clone(), shared.clone(), model.clone());
         move |name: &str, value: &ParameterValue| -> Result<(), String> {
-            if [ROBOT_PARAM, LEG_MAP_PARAM, ODOM_TF_PARAM, STAND_PARAM].contains(&name) {
+            if NODE_PARAMS.contains(&name) {
                 return Err(node_runtime::read_at_startup_only(name));
             }
             if name == "use_sim_time" {
@@ -556,7 +581,14 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
             tx.send((candidate, scratch)).map_err(|e| e.to_string())
         }
     };
-    let declared = declared(&params, &robot_file, &leg_map_file, odom_tf, stand_at_start)?;
+    let declared = declared(
+        &params,
+        &robot_file,
+        &leg_map_file,
+        odom_tf,
+        stand_at_start,
+        plan_ahead,
+    )?;
     let mut ros = RosNode::start(&host, setup, &declared, Some(Box::new(check)))?;
     let stop = host.stop_flag();
     let phase_pub = ros.publisher::<GaitPhase>("gait/phase")?;
@@ -580,10 +612,15 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let executor = ros.executor()?;
     let c = planner.config();
     ros.info(&format!(
-            "ready: robot {}, step {:.4} m, {} Hz; send biped_msgs/msg/WalkCommand on walk_command or geometry_msgs/msg/Twist on cmd_vel",
+            "ready: robot {}, step {:.4} m, {} Hz{}; send biped_msgs/msg/WalkCommand on walk_command or geometry_msgs/msg/Twist on cmd_vel",
             model.robot().name(),
             c.step_length_m,
-            c.control_rate_hz
+            c.control_rate_hz,
+            if plan_ahead {
+                ", a tick ahead of /clock (plan_ahead)"
+            } else {
+                ""
+            }
         ),
     );
     if let Some(auto) = planner.auto_timing_summary() {
@@ -601,6 +638,9 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         // A walk command whose new parameters' timing is being searched off the loop.
         let mut searching: Option<(std::sync::mpsc::Receiver<SearchResult>, WalkCommand)> = None;
         let mut last_sent: Option<(GaitPhase, Option<AnkleTargets>)> = None;
+        // The last tick planned, and the tick period on simulated time (ns).
+        let mut planned: Option<u64> = None;
+        let period_ns = (1e9 / rate).round() as i64;
         // When the joint bridge holds (e-stop, torque off, inactive) the walk's time slows to
         // a stop along the plan, as `~/pause` does: the bridge's e-stop follows the commands
         // (and a deactivate) to that rest before it holds (`estop_follow_s`), so the walk
@@ -630,213 +670,224 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 }
                 continue;
             }
-            let k = tick.k;
-            let now: biped_msgs::msg::Time = match tick.sim_time {
-                Some(t) => t,
-                None => ros.node.time_now().into(),
+            // The ticks to plan: this one, and with `plan_ahead` the next too (only the next
+            // once the one ahead was planned at the previous tick).
+            let last = tick.k + u64::from(plan_ahead);
+            let from = match planned {
+                Some(p) if p >= tick.k && p < last => p + 1,
+                _ => tick.k,
             };
-            while let Ok((p, checked)) = rx.try_recv() {
-                planner.remember_auto_timing(&checked);
-                match planner.set_params(p.clone()) {
-                    Ok(()) => {
-                        params = p;
-                        clock.set_brake_ticks(brake_ticks(planner.config()));
-                        ros.info("parameters changed");
-                    }
-                    Err(e) => ros.warn(&format!("parameter change not applied: {e}")),
-                }
-            }
-            if let Some(why) = guard.as_ref().and_then(StandGuard::refusal) {
-                while let Ok(Some(_)) = walk_cmd.take() {
-                    ros.warn(&format!("walk_command refused: {why}"));
-                }
-                while let Ok(Some(_)) = cmd_vel.take() {
-                    ros.warn_throttled("cmd_vel refused", &format!("cmd_vel refused: {why}"));
-                }
-            }
-            while let Ok(Some((msg, _))) = walk_cmd.take() {
-                // A stamped command sent again (a sender making sure it arrives) is the same
-                // command: take it once.
-                let repeat = msg.start_time.to_nanos() != 0 && last_stamped.as_ref() == Some(&msg);
-                if !repeat {
-                    if msg.start_time.to_nanos() != 0 {
-                        last_stamped = Some(msg.clone());
-                    }
-                    if let Err(e) = pending.push(msg.start_time.to_nanos(), msg) {
-                        ros.warn(&format!("walk_command: {e}"));
-                    }
-                }
-            }
-            // A walk command waiting for its parameters' timing search (on its own thread, so
-            // that the loop keeps ticking): when found, it is taken as if it came now.
-            if let Some((rx, msg)) = searching.take() {
-                match rx.try_recv() {
-                    Err(std::sync::mpsc::TryRecvError::Empty) => searching = Some((rx, msg)),
-                    Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                        ros.warn("walk_command refused: its timing search stopped");
-                    }
-                    Ok(Err(e)) => ros.warn(&format!(
-                        "walk_command refused: step_length = {}, step_duration = {}: {e}",
-                        msg.step_length, msg.step_duration
-                    )),
-                    Ok(Ok(checked)) => {
-                        planner.remember_auto_timing(&checked);
-                        if let Some(auto) = checked.auto_timing_summary() {
-                            ros.info(&auto);
+            for k in from..=last {
+                let now: biped_msgs::msg::Time = match tick.sim_time {
+                    Some(t) => biped_msgs::msg::Time::from_nanos(
+                        t.to_nanos() + (k - tick.k) as i64 * period_ns,
+                    ),
+                    None => ros.node.time_now().into(),
+                };
+                while let Ok((p, checked)) = rx.try_recv() {
+                    planner.remember_auto_timing(&checked);
+                    match planner.set_params(p.clone()) {
+                        Ok(()) => {
+                            params = p;
+                            clock.set_brake_ticks(brake_ticks(planner.config()));
+                            ros.info("parameters changed");
                         }
-                        let (warnings, again) =
-                            commands.walk_command(&mut planner, &msg, &mut params);
-                        for w in warnings {
-                            ros.warn(&w);
+                        Err(e) => ros.warn(&format!("parameter change not applied: {e}")),
+                    }
+                }
+                if let Some(why) = guard.as_ref().and_then(StandGuard::refusal) {
+                    while let Ok(Some(_)) = walk_cmd.take() {
+                        ros.warn(&format!("walk_command refused: {why}"));
+                    }
+                    while let Ok(Some(_)) = cmd_vel.take() {
+                        ros.warn_throttled("cmd_vel refused", &format!("cmd_vel refused: {why}"));
+                    }
+                }
+                while let Ok(Some((msg, _))) = walk_cmd.take() {
+                    // A stamped command sent again (a sender making sure it arrives) is the same
+                    // command: take it once.
+                    let repeat = msg.start_time.to_nanos() != 0 && last_stamped.as_ref() == Some(&msg);
+                    if !repeat {
+                        if msg.start_time.to_nanos() != 0 {
+                            last_stamped = Some(msg.clone());
                         }
-                        // Parameters changed meanwhile (a parameter set): search again for
-                        // the command on the new ones.
-                        if let Some(p) = again {
-                            searching = spawn_timing_search(&ros, planner.model(), p, msg);
+                        if let Err(e) = pending.push(msg.start_time.to_nanos(), msg) {
+                            ros.warn(&format!("walk_command: {e}"));
                         }
                     }
                 }
-            }
-            // In arrival order, each at its start time (zero: now). A stop also cancels the
-            // walks still waiting for their start time: a stop means stop.
-            while searching.is_none()
-                && let Some(msg) = pending.take_due(now.to_nanos())
-            {
-                if msg.stop {
-                    let n = pending.cancel_all();
-                    if n > 0 {
-                        ros.warn(&format!(
-                            "walk_command stop: {n} walk command(s) waiting for their start time cancelled"
-                        ));
+                // A walk command waiting for its parameters' timing search (on its own thread, so
+                // that the loop keeps ticking): when found, it is taken as if it came now.
+                if let Some((rx, msg)) = searching.take() {
+                    match rx.try_recv() {
+                        Err(std::sync::mpsc::TryRecvError::Empty) => searching = Some((rx, msg)),
+                        Err(std::sync::mpsc::TryRecvError::Disconnected) => {
+                            ros.warn("walk_command refused: its timing search stopped");
+                        }
+                        Ok(Err(e)) => ros.warn(&format!(
+                            "walk_command refused: step_length = {}, step_duration = {}: {e}",
+                            msg.step_length, msg.step_duration
+                        )),
+                        Ok(Ok(checked)) => {
+                            planner.remember_auto_timing(&checked);
+                            if let Some(auto) = checked.auto_timing_summary() {
+                                ros.info(&auto);
+                            }
+                            let (warnings, again) =
+                                commands.walk_command(&mut planner, &msg, &mut params);
+                            for w in warnings {
+                                ros.warn(&w);
+                            }
+                            // Parameters changed meanwhile (a parameter set): search again for
+                            // the command on the new ones.
+                            if let Some(p) = again {
+                                searching = spawn_timing_search(&ros, planner.model(), p, msg);
+                            }
+                        }
                     }
                 }
-                let (warnings, search) = commands.walk_command(&mut planner, &msg, &mut params);
-                for w in warnings {
-                    ros.warn(&w);
-                }
-                if let Some(p) = search {
-                    ros.info(
-                        "walk_command: new parameters with durations left at 0 (auto): searching their timing; the walk starts when it is found",
-                    );
-                    // The commands after it wait for it, in order (the loop's condition).
-                    searching = spawn_timing_search(&ros, planner.model(), p, msg);
-                }
-            }
-            while let Ok(Some((h, _))) = bridge_holding.take() {
-                if h.data != bridge_holds {
-                    bridge_holds = h.data;
-                    // A pause the operator asked for stays until the operator resumes.
-                    if bridge_holds {
-                        paused_for_bridge = clock.pause();
-                    } else if paused_for_bridge {
-                        paused_for_bridge = false;
-                        clock.resume();
-                    }
-                    ros.warn(if bridge_holds {
-                        "the joint bridge holds (e-stop, torque off or inactive): the walk brakes to a pause along its path"
-                    } else {
-                        "the joint bridge takes commands again: the walk goes on from where it paused"
-                    });
-                }
-            }
-            serve_pause(
-                &ros,
-                &pause_srv,
-                &mut clock,
-                planner.config().pause_brake_time_s,
-            );
-            ticks_here += 1;
-            // Frozen while the bridge holds and the walk is not pausing (an operator resumed
-            // it meanwhile): the bridge ignores the commands, so the plan must not move on.
-            let t_s = clock.plan_ticks(k, bridge_holds && !clock.pausing()) / rate;
-            while let Ok(Some((msg, _))) = cmd_vel.take() {
-                for w in commands.cmd_vel(&mut planner, &msg, t_s) {
-                    ros.warn(&w);
-                }
-            }
-            if let Some(m) = commands.follower.tick(&mut planner, t_s) {
-                ros.info(&m);
-            }
-            let sample = match planner.update(t_s) {
-                Ok(s) => s,
-                Err(e) => {
-                    ros.error(&format!("planner: {e}"));
-                    continue;
-                }
-            };
-            walking.store(sample.phase != PhaseKind::Idle, Ordering::SeqCst);
-            if last_phase != Some((sample.phase, sample.step_index)) {
-                ros.info(&format!(
-                    "phase {} ({} support, step {})",
-                    sample.phase, sample.support, sample.step_index
-                ));
-                last_phase = Some((sample.phase, sample.step_index));
-            }
-            while let Ok(Some((js, _))) = joint_states.take() {
-                if let Some(w) = odom.joint_states(&model, &js) {
-                    ros.warn(&w);
-                }
-                if let Some(g) = &mut guard
-                    && let Some(said) =
-                        g.measured(&model, &sample.joints_rad, &js.name, &js.position)
+                // In arrival order, each at its start time (zero: now). A stop also cancels the
+                // walks still waiting for their start time: a stop means stop.
+                while searching.is_none()
+                    && let Some(msg) = pending.take_due(now.to_nanos())
                 {
-                    if g.clear() {
-                        ros.info(&said);
-                    } else {
-                        ros.warn(&said);
-                    }
-                }
-            }
-            if let Some(g) = &guard
-                && !said_waiting
-                && *g.state() == Standing::Unknown
-                && ticks_here as f64 > 2.0 * rate
-            {
-                said_waiting = true;
-                ros.warn("stand_at_start is false and no complete joint_states came in 2 s: publishing no ankle targets until the robot's pose is measured");
-            }
-            // Not standing yet (a restart): the held measured pose, or (unknown) nothing.
-            let targets = match guard.as_ref().filter(|g| !g.clear()) {
-                Some(g) => g.held_targets(),
-                None => Some(&sample.targets),
-            };
-            let sent = to_msgs(&sample, targets, now, &base_frame);
-            publish(&ros, &targets_pub, &phase_pub, &sent);
-            let header = Header {
-                stamp: now,
-                frame_id: "odom".into(),
-            };
-            let view = planner.balance_view(&sample);
-            if let Err(e) = markers_pub.publish(markers::balance_markers(&view, &header)) {
-                ros.error_throttled(
-                    "publish gait/markers",
-                    &format!("publish gait/markers: {e}"),
-                );
-            }
-            match odom.tick(
-                &model,
-                &sample,
-                1.0 / rate,
-                sent.0.header.clone(),
-                &base_frame,
-            ) {
-                Ok(Some(o)) => {
-                    if let Some(tf_pub) = &tf_pub {
-                        let tf = TFMessage {
-                            transforms: vec![o.transform()],
-                        };
-                        if let Err(e) = tf_pub.publish(tf) {
-                            ros.error_throttled("publish /tf", &format!("publish /tf: {e}"));
+                    if msg.stop {
+                        let n = pending.cancel_all();
+                        if n > 0 {
+                            ros.warn(&format!(
+                                "walk_command stop: {n} walk command(s) waiting for their start time cancelled"
+                            ));
                         }
                     }
-                    if let Err(e) = odom_pub.publish(o) {
-                        ros.error_throttled("publish odom", &format!("publish odom: {e}"));
+                    let (warnings, search) = commands.walk_command(&mut planner, &msg, &mut params);
+                    for w in warnings {
+                        ros.warn(&w);
+                    }
+                    if let Some(p) = search {
+                        ros.info(
+                            "walk_command: new parameters with durations left at 0 (auto): searching their timing; the walk starts when it is found",
+                        );
+                        // The commands after it wait for it, in order (the loop's condition).
+                        searching = spawn_timing_search(&ros, planner.model(), p, msg);
                     }
                 }
-                Ok(None) => {}
-                Err(e) => ros.error_throttled("odom", &format!("odom: {e}")),
+                while let Ok(Some((h, _))) = bridge_holding.take() {
+                    if h.data != bridge_holds {
+                        bridge_holds = h.data;
+                        // A pause the operator asked for stays until the operator resumes.
+                        if bridge_holds {
+                            paused_for_bridge = clock.pause();
+                        } else if paused_for_bridge {
+                            paused_for_bridge = false;
+                            clock.resume();
+                        }
+                        ros.warn(if bridge_holds {
+                            "the joint bridge holds (e-stop, torque off or inactive): the walk brakes to a pause along its path"
+                        } else {
+                            "the joint bridge takes commands again: the walk goes on from where it paused"
+                        });
+                    }
+                }
+                serve_pause(
+                    &ros,
+                    &pause_srv,
+                    &mut clock,
+                    planner.config().pause_brake_time_s,
+                );
+                ticks_here += 1;
+                // Frozen while the bridge holds and the walk is not pausing (an operator resumed
+                // it meanwhile): the bridge ignores the commands, so the plan must not move on.
+                let t_s = clock.plan_ticks(k, bridge_holds && !clock.pausing()) / rate;
+                while let Ok(Some((msg, _))) = cmd_vel.take() {
+                    for w in commands.cmd_vel(&mut planner, &msg, t_s) {
+                        ros.warn(&w);
+                    }
+                }
+                if let Some(m) = commands.follower.tick(&mut planner, t_s) {
+                    ros.info(&m);
+                }
+                let sample = match planner.update(t_s) {
+                    Ok(s) => s,
+                    Err(e) => {
+                        ros.error(&format!("planner: {e}"));
+                        continue;
+                    }
+                };
+                walking.store(sample.phase != PhaseKind::Idle, Ordering::SeqCst);
+                if last_phase != Some((sample.phase, sample.step_index)) {
+                    ros.info(&format!(
+                        "phase {} ({} support, step {})",
+                        sample.phase, sample.support, sample.step_index
+                    ));
+                    last_phase = Some((sample.phase, sample.step_index));
+                }
+                while let Ok(Some((js, _))) = joint_states.take() {
+                    if let Some(w) = odom.joint_states(&model, &js) {
+                        ros.warn(&w);
+                    }
+                    if let Some(g) = &mut guard
+                        && let Some(said) =
+                            g.measured(&model, &sample.joints_rad, &js.name, &js.position)
+                    {
+                        if g.clear() {
+                            ros.info(&said);
+                        } else {
+                            ros.warn(&said);
+                        }
+                    }
+                }
+                if let Some(g) = &guard
+                    && !said_waiting
+                    && *g.state() == Standing::Unknown
+                    && ticks_here as f64 > 2.0 * rate
+                {
+                    said_waiting = true;
+                    ros.warn("stand_at_start is false and no complete joint_states came in 2 s: publishing no ankle targets until the robot's pose is measured");
+                }
+                // Not standing yet (a restart): the held measured pose, or (unknown) nothing.
+                let targets = match guard.as_ref().filter(|g| !g.clear()) {
+                    Some(g) => g.held_targets(),
+                    None => Some(&sample.targets),
+                };
+                let sent = to_msgs(&sample, targets, now, &base_frame);
+                publish(&ros, &targets_pub, &phase_pub, &sent);
+                let header = Header {
+                    stamp: now,
+                    frame_id: "odom".into(),
+                };
+                let view = planner.balance_view(&sample);
+                if let Err(e) = markers_pub.publish(markers::balance_markers(&view, &header)) {
+                    ros.error_throttled(
+                        "publish gait/markers",
+                        &format!("publish gait/markers: {e}"),
+                    );
+                }
+                match odom.tick(
+                    &model,
+                    &sample,
+                    1.0 / rate,
+                    sent.0.header.clone(),
+                    &base_frame,
+                ) {
+                    Ok(Some(o)) => {
+                        if let Some(tf_pub) = &tf_pub {
+                            let tf = TFMessage {
+                                transforms: vec![o.transform()],
+                            };
+                            if let Err(e) = tf_pub.publish(tf) {
+                                ros.error_throttled("publish /tf", &format!("publish /tf: {e}"));
+                            }
+                        }
+                        if let Err(e) = odom_pub.publish(o) {
+                            ros.error_throttled("publish odom", &format!("publish odom: {e}"));
+                        }
+                    }
+                    Ok(None) => {}
+                    Err(e) => ros.error_throttled("odom", &format!("odom: {e}")),
+                }
+                last_sent = Some(sent);
+                planned = Some(k);
             }
-            last_sent = Some(sent);
         }
         Ok(())
     })

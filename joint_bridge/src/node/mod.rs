@@ -41,7 +41,10 @@
 //!
 //! With `use_sim_time` the bridge ticks on `/clock`, in lockstep: tick t waits (up to
 //! `lockstep_wait_s` of wall time) for the `joint_commands` stamped t, so a lockstep simulator
-//! gets the answer to every tick computed from that tick's command.
+//! gets the answer to every tick computed from that tick's command. A command stamped for a
+//! tick still to come (a gait planner with `plan_ahead`, or one quicker than `/clock`) is
+//! held until that tick (up to 1 s ahead, 64 commands; stamped further ahead, as by a peer
+//! on another clock, it is taken at once).
 
 mod lifecycle;
 mod serial_setup;
@@ -419,10 +422,8 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         }
     };
     let last_diagnostics = std::cell::Cell::new(None::<Instant>);
-    // One control period at t: watchdog, write, read back, publish.
-    let do_tick = |bridge: &mut JointBridge<Box<dyn Backend>>, t_s: f64| {
-        operator.serve(&ros, bridge);
-        lifecycle.serve(&ros, bridge);
+    // `~/holding` when it changed: where the operator's and the lifecycle's calls are served.
+    let say_holding = |bridge: &JointBridge<Box<dyn Backend>>| {
         let holding = bridge.operator().is_some();
         if holding_sent.get() != Some(holding) {
             match holding_pub.publish(BoolMsg { data: holding }) {
@@ -432,6 +433,12 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 }
             }
         }
+    };
+    // One control period at t: watchdog, write, read back, publish.
+    let do_tick = |bridge: &mut JointBridge<Box<dyn Backend>>, t_s: f64| {
+        operator.serve(&ros, bridge, &say_holding);
+        lifecycle.serve(&ros, bridge);
+        say_holding(bridge);
         let (reading, events) = bridge.tick(t_s);
         report(events);
         if let Some(link) = &link
@@ -542,6 +549,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
             let mut pending: Option<(f64, Instant)> = None;
             let mut clock_s = 0.0;
             let mut newest_command_s = f64::NEG_INFINITY;
+            let mut early = EarlyCommands::default();
             // With gyro damping, tick t also waits for the body rate stamped t (published by the
             // simulator with the state of t, before /clock), so the run stays deterministic, as
             // long as the IMU publishes: one silent for more than GYRO_MAX_AGE_S (or never heard)
@@ -576,8 +584,11 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 .await;
                 match wake {
                     Wake::Command(Some(cmd)) => {
-                        newest_command_s = newest_command_s.max(cmd.header.stamp.as_secs_f64());
-                        report(bridge.command(clock_s, &cmd.name, &cmd.position));
+                        let stamp_s = cmd.header.stamp.as_secs_f64();
+                        if let Some(cmd) = early.offer(clock_s, stamp_s, cmd) {
+                            newest_command_s = newest_command_s.max(stamp_s);
+                            report(bridge.command(clock_s, &cmd.name, &cmd.position));
+                        }
                     }
                     Wake::Imu(m) => {
                         let t = m.header.stamp.as_secs_f64();
@@ -593,8 +604,11 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                         if tick.repeat {
                             // The simulator says tick t again (waiting, paused or held at
                             // its `~/run_until`): an operator's call is answered now and acts
-                            // from the next tick (a held simulator waits for the answer).
-                            operator.serve(&ros, &mut bridge);
+                            // from the next tick (a held simulator waits for the answer). A
+                            // hold it starts or ends is said on `~/holding` before the answer:
+                            // the gait planner hears it before the next tick's `/clock`,
+                            // however far ahead of it the planner runs (its `plan_ahead`).
+                            operator.serve(&ros, &mut bridge, &say_holding);
                             if pending.is_none()
                                 && let Some(link) = &link
                                 && let Err(e) = link.resend()
@@ -607,7 +621,17 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                         if let Some((p, _)) = pending.take() {
                             do_tick(&mut bridge, p);
                         }
+                        if t < clock_s {
+                            // The clock went back (the simulation restarted): what was held
+                            // was for the old run.
+                            early = EarlyCommands::default();
+                        }
                         clock_s = t;
+                        // The commands that came early for this tick act now.
+                        while let Some((stamp_s, cmd)) = early.due(t) {
+                            newest_command_s = newest_command_s.max(stamp_s);
+                            report(bridge.command(t, &cmd.name, &cmd.position));
+                        }
                         pending = Some((t, Instant::now()));
                     }
                 }
@@ -648,8 +672,14 @@ impl OperatorServices {
     }
 
     /// Answers every request waiting, acting on the bridge; logs each answer (a warning when
-    /// done, an error when refused).
-    fn serve<B: Backend>(&self, ros: &RosNode, bridge: &mut JointBridge<B>) {
+    /// done, an error when refused). `said_hold` says what the call changed (the bridge's hold)
+    /// before the answer goes out: a caller that acts on the answer acts after it.
+    fn serve<B: Backend>(
+        &self,
+        ros: &RosNode,
+        bridge: &mut JointBridge<B>,
+        said_hold: &dyn Fn(&JointBridge<B>),
+    ) {
         let answer = |outcome: Result<String, String>| {
             let (success, message) = match outcome {
                 Ok(m) => {
@@ -671,6 +701,7 @@ impl OperatorServices {
                 "emergency stop: holding where the joints come to rest; joint commands ignored until ~/reset"
             };
             let a = answer(Ok(said.into()));
+            said_hold(bridge);
             let _ = self.estop.send_response(id, a);
         }
         while let Ok(Some((id, _))) = self.reset.receive_request() {
@@ -679,6 +710,7 @@ impl OperatorServices {
             } else {
                 Err("reset: no emergency stop was on".into())
             };
+            said_hold(bridge);
             let _ = self.reset.send_response(id, answer(outcome));
         }
         while let Ok(Some((id, req))) = self.torque.receive_request() {
@@ -692,6 +724,7 @@ impl OperatorServices {
                 ),
                 Err(e) => Err(format!("set_torque {on} refused: {e}")),
             };
+            said_hold(bridge);
             let _ = self.torque.send_response(id, answer(outcome));
         }
     }
@@ -712,6 +745,42 @@ fn take_command(sub: &node_runtime::Subscription<JointState>, ros: &RosNode) -> 
     }
 }
 
+/// Commands stamped for a tick still to come (a planner publishing ahead with its
+/// `plan_ahead`, or a planner → IK chain quicker than the simulator's `/clock`), held until
+/// that tick: tick t acts on the commands stamped t or before, however the messages raced,
+/// so a lockstep run stays deterministic. A command stamped more than
+/// [`EarlyCommands::HORIZON_S`] ahead (a peer on another clock) is taken at once, as is one
+/// arriving with [`EarlyCommands::MAX_HELD`] already held: the queue is bounded.
+#[derive(Debug, Default)]
+struct EarlyCommands {
+    /// Held commands with their stamps (s), in arrival order.
+    held: std::collections::VecDeque<(f64, JointState)>,
+}
+
+impl EarlyCommands {
+    /// How far ahead of the current tick a command is held for its tick (s).
+    const HORIZON_S: f64 = 1.0;
+    /// At most this many commands held.
+    const MAX_HELD: usize = 64;
+
+    /// A command stamped `stamp_s` received while the bridge is at tick `now_s`: `Some` to
+    /// take it now, `None` when it is held for its tick.
+    fn offer(&mut self, now_s: f64, stamp_s: f64, cmd: JointState) -> Option<JointState> {
+        let ahead_s = stamp_s - now_s;
+        if ahead_s <= 1e-9 || ahead_s > Self::HORIZON_S || self.held.len() >= Self::MAX_HELD {
+            return Some(cmd);
+        }
+        self.held.push_back((stamp_s, cmd));
+        None
+    }
+
+    /// The next held command due at tick `now_s` (stamped at or before it), in arrival order.
+    fn due(&mut self, now_s: f64) -> Option<(f64, JointState)> {
+        let i = self.held.iter().position(|(s, _)| *s <= now_s + 1e-9)?;
+        self.held.remove(i)
+    }
+}
+
 /// Whether a lockstep tick at `tick_s` still waits for the body rate: gyro damping is on
 /// (`subscribed`), the IMU is publishing (its newest rate, stamped `newest_imu_s`, at most
 /// [`joint_bridge::GYRO_MAX_AGE_S`] older than the tick) and the rate of this tick has not
@@ -724,7 +793,56 @@ fn imu_due(subscribed: bool, newest_imu_s: f64, tick_s: f64) -> bool {
 
 #[cfg(test)]
 mod tests {
-    use super::imu_due;
+    use super::{EarlyCommands, imu_due};
+    use biped_msgs::msg::JointState;
+
+    fn cmd(position: f64) -> JointState {
+        JointState {
+            name: vec!["knee".into()],
+            position: vec![position],
+            ..JointState::default()
+        }
+    }
+
+    fn position(c: Option<JointState>) -> Option<f64> {
+        c.map(|c| c.position[0])
+    }
+
+    #[test]
+    fn a_command_for_a_tick_still_to_come_waits_for_it() {
+        let mut early = EarlyCommands::default();
+        // At tick 1.00: the commands stamped 1.00 (and a late one, 0.99) act at once.
+        assert_eq!(position(early.offer(1.0, 1.0, cmd(0.1))), Some(0.1));
+        assert_eq!(position(early.offer(1.0, 0.99, cmd(0.2))), Some(0.2));
+        // Stamped 1.01 and 1.02: held, nothing due at 1.00.
+        assert_eq!(position(early.offer(1.0, 1.01, cmd(0.3))), None);
+        assert_eq!(position(early.offer(1.0, 1.02, cmd(0.4))), None);
+        assert!(early.due(1.0).is_none());
+        // Tick 1.01 takes the one stamped 1.01 only; tick 1.02 the other.
+        assert_eq!(
+            early.due(1.01).map(|(s, c)| (s, c.position[0])),
+            Some((1.01, 0.3))
+        );
+        assert!(early.due(1.01).is_none());
+        assert_eq!(
+            early.due(1.02).map(|(s, c)| (s, c.position[0])),
+            Some((1.02, 0.4))
+        );
+        assert!(early.due(5.0).is_none());
+    }
+
+    #[test]
+    fn a_command_far_ahead_or_past_the_bound_is_taken_at_once() {
+        let mut early = EarlyCommands::default();
+        // Stamped on another clock (the wall clock's seconds since 1970): not a tick to come.
+        assert_eq!(position(early.offer(1.0, 1.7e9, cmd(0.5))), Some(0.5));
+        assert_eq!(position(early.offer(1.0, 2.0 + 1e-6, cmd(0.6))), Some(0.6));
+        // The queue is bounded: the 65th early command is taken at once.
+        for i in 0..EarlyCommands::MAX_HELD {
+            assert!(early.offer(1.0, 1.01 + i as f64 * 1e-3, cmd(0.0)).is_none());
+        }
+        assert_eq!(position(early.offer(1.0, 1.5, cmd(0.7))), Some(0.7));
+    }
 
     #[test]
     fn a_tick_waits_for_the_body_rate_only_while_the_imu_publishes() {
