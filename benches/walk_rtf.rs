@@ -7,7 +7,9 @@
 //!    separate processes, DDS over loopback) in lockstep, simulated time only advancing once
 //!    every node has answered each 10 ms tick; its own report's figure (from the first
 //!    `/clock` on: process start-up and discovery excluded);
-//! 4. `biped walk --composed`: the same with gait_planner, ik_solver, joint_bridge and
+//! 4. `biped walk --plan-ahead`: the four processes with the gait planner a tick ahead of
+//!    `/clock` (the tick waits for the joint bridge's hop only; the same walk);
+//! 5. `biped walk --composed`: the same with gait_planner, ik_solver, joint_bridge and
 //!    sim_bridge in one process (`biped compose`, in-process delivery between them).
 //!
 //! For the two fleets, also the messaging work of one tick, from the walk's report
@@ -146,6 +148,10 @@ fn main() -> ExitCode {
     for (what, extra) in [
         ("`biped walk`: the fleet over DDS in lockstep", &[][..]),
         (
+            "`biped walk --plan-ahead`: the same, the planner a tick ahead of `/clock`",
+            &["--plan-ahead"][..],
+        ),
+        (
             "`biped walk --composed`: the four nodes in one process, in lockstep",
             &["--composed"][..],
         ),
@@ -257,8 +263,8 @@ fn main() -> ExitCode {
         "\nEach process's CPU time and context switches a tick (`work_per_tick.by_process`), \
          median of {RUNS} runs:\n"
     );
-    println!("| process | four processes | composed |");
-    println!("|---|---:|---:|");
+    println!("| process | four processes | planner ahead | composed |");
+    println!("|---|---:|---:|---:|");
     for name in &names {
         let cell = |reports: &[serde_json::Value]| {
             let cpu = m(reports, &format!("/work_per_tick/by_process/{name}/cpu_ms"));
@@ -273,9 +279,10 @@ fn main() -> ExitCode {
             }
         };
         println!(
-            "| {name} | {} | {} |",
+            "| {name} | {} | {} | {} |",
             cell(&fleets[0].1),
-            cell(&fleets[1].1)
+            cell(&fleets[1].1),
+            cell(&fleets[2].1)
         );
     }
     ExitCode::SUCCESS

@@ -169,6 +169,13 @@ enum Command {
         /// DDS as without it.
         #[arg(long)]
         composed: bool,
+        /// The gait planner a tick ahead of `/clock` (its `plan_ahead` parameter): tick k's
+        /// targets go out at `/clock` k - 1 and the joint bridge holds them until tick k, so
+        /// the lockstep tick waits for one hop instead of three. The same walk (the joints
+        /// get the same targets at the same ticks); the planner hears commands and the
+        /// bridge's hold a tick earlier in its plan.
+        #[arg(long)]
+        plan_ahead: bool,
     },
     /// Record topics into a rosbag2 bag (Jazzy format, MCAP or sqlite3) until Ctrl-C,
     /// SIGTERM or --duration.
@@ -485,6 +492,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             estop_at,
             pause_at,
             composed,
+            plan_ahead,
         } => {
             if !(settle.is_finite() && (0.0..=60.0).contains(&settle)) {
                 anyhow::bail!("--settle {settle}: must be within [0, 60] s");
@@ -516,6 +524,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 estop_at_s,
                 pause_at_s,
                 composed,
+                plan_ahead,
             })?;
             let r = &outcome.report;
             let m = &r.measured;

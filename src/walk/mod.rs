@@ -72,6 +72,8 @@ pub struct WalkOptions {
     /// Run gait_planner, ik_solver, joint_bridge and sim_bridge in one process (`biped
     /// compose`); the simulator starts paused and is released once the walk command is in.
     pub composed: bool,
+    /// The gait planner a tick ahead of `/clock` (its `plan_ahead` parameter).
+    pub plan_ahead: bool,
 }
 
 impl WalkOptions {
@@ -492,6 +494,9 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         // The simulator starts with the other nodes in their process: it waits at t = 0
         // until the walk command is in (step 1 below releases it).
         node_params.push(("sim_bridge".into(), "start_paused:=true".into()));
+    }
+    if o.plan_ahead {
+        node_params.push(("gait_planner".into(), "plan_ahead:=true".into()));
     }
     if !o.stop_at_s().is_empty() {
         // The stops hold simulated time while their calls are out ([`StopDriver`]).
