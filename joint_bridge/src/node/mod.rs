@@ -764,10 +764,17 @@ impl EarlyCommands {
     const MAX_HELD: usize = 64;
 
     /// A command stamped `stamp_s` received while the bridge is at tick `now_s`: `Some` to
-    /// take it now, `None` when it is held for its tick.
+    /// take it now, `None` when it is held for its tick. The same command again (sent anew
+    /// at each repeat of a tick while a simulator waits or is paused) is held once.
     fn offer(&mut self, now_s: f64, stamp_s: f64, cmd: JointState) -> Option<JointState> {
         let ahead_s = stamp_s - now_s;
-        if ahead_s <= 1e-9 || ahead_s > Self::HORIZON_S || self.held.len() >= Self::MAX_HELD {
+        if ahead_s <= 1e-9 || ahead_s > Self::HORIZON_S {
+            return Some(cmd);
+        }
+        if self.held.back().is_some_and(|(_, last)| *last == cmd) {
+            return None;
+        }
+        if self.held.len() >= Self::MAX_HELD {
             return Some(cmd);
         }
         self.held.push_back((stamp_s, cmd));
@@ -818,6 +825,11 @@ mod tests {
         assert_eq!(position(early.offer(1.0, 1.01, cmd(0.3))), None);
         assert_eq!(position(early.offer(1.0, 1.02, cmd(0.4))), None);
         assert!(early.due(1.0).is_none());
+        // Said again (a paused simulator's repeats): held once, however often.
+        for _ in 0..100 {
+            assert_eq!(position(early.offer(1.0, 1.02, cmd(0.4))), None);
+        }
+        assert_eq!(early.held.len(), 2);
         // Tick 1.01 takes the one stamped 1.01 only; tick 1.02 the other.
         assert_eq!(
             early.due(1.01).map(|(s, c)| (s, c.position[0])),
@@ -839,7 +851,8 @@ mod tests {
         assert_eq!(position(early.offer(1.0, 2.0 + 1e-6, cmd(0.6))), Some(0.6));
         // The queue is bounded: the 65th early command is taken at once.
         for i in 0..EarlyCommands::MAX_HELD {
-            assert!(early.offer(1.0, 1.01 + i as f64 * 1e-3, cmd(0.0)).is_none());
+            let c = cmd(i as f64);
+            assert!(early.offer(1.0, 1.01 + i as f64 * 1e-3, c).is_none());
         }
         assert_eq!(position(early.offer(1.0, 1.5, cmd(0.7))), Some(0.7));
     }
