@@ -585,7 +585,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 match wake {
                     Wake::Command(Some(cmd)) => {
                         let stamp_s = cmd.header.stamp.as_secs_f64();
-                        if let Some(cmd) = early.offer(clock_s, stamp_s, cmd) {
+                        if let Some((stamp_s, cmd)) = early.offer(clock_s, stamp_s, cmd) {
                             newest_command_s = newest_command_s.max(stamp_s);
                             report(bridge.command(clock_s, &cmd.name, &cmd.position));
                         }
@@ -749,8 +749,9 @@ fn take_command(sub: &node_runtime::Subscription<JointState>, ros: &RosNode) -> 
 /// `plan_ahead`, or a planner → IK chain quicker than the simulator's `/clock`), held until
 /// that tick: tick t acts on the commands stamped t or before, however the messages raced,
 /// so a lockstep run stays deterministic. A command stamped more than
-/// [`EarlyCommands::HORIZON_S`] ahead (a peer on another clock) is taken at once, as is one
-/// arriving with [`EarlyCommands::MAX_HELD`] already held: the queue is bounded.
+/// [`EarlyCommands::HORIZON_S`] ahead (a peer on another clock) is taken at once; with
+/// [`EarlyCommands::MAX_HELD`] held, a new one pushes the oldest out to be taken at once (the
+/// queue is bounded, and the commands still act in the order of their stamps).
 #[derive(Debug, Default)]
 struct EarlyCommands {
     /// Held commands with their stamps (s), in arrival order.
@@ -763,22 +764,25 @@ impl EarlyCommands {
     /// At most this many commands held.
     const MAX_HELD: usize = 64;
 
-    /// A command stamped `stamp_s` received while the bridge is at tick `now_s`: `Some` to
-    /// take it now, `None` when it is held for its tick. The same command again (sent anew
-    /// at each repeat of a tick while a simulator waits or is paused) is held once.
-    fn offer(&mut self, now_s: f64, stamp_s: f64, cmd: JointState) -> Option<JointState> {
+    /// A command stamped `stamp_s` received while the bridge is at tick `now_s`: the command
+    /// to take now with its stamp (this one, or the oldest held when the queue is full), or
+    /// `None` when it is held for its tick. The same command again (sent anew at each repeat
+    /// of a tick while a simulator waits or is paused) is held once.
+    fn offer(&mut self, now_s: f64, stamp_s: f64, cmd: JointState) -> Option<(f64, JointState)> {
         let ahead_s = stamp_s - now_s;
         if ahead_s <= 1e-9 || ahead_s > Self::HORIZON_S {
-            return Some(cmd);
+            return Some((stamp_s, cmd));
         }
         if self.held.back().is_some_and(|(_, last)| *last == cmd) {
             return None;
         }
-        if self.held.len() >= Self::MAX_HELD {
-            return Some(cmd);
-        }
+        let out = if self.held.len() >= Self::MAX_HELD {
+            self.held.pop_front()
+        } else {
+            None
+        };
         self.held.push_back((stamp_s, cmd));
-        None
+        out
     }
 
     /// The next held command due at tick `now_s` (stamped at or before it), in arrival order.
@@ -811,8 +815,8 @@ mod tests {
         }
     }
 
-    fn position(c: Option<JointState>) -> Option<f64> {
-        c.map(|c| c.position[0])
+    fn position(c: Option<(f64, JointState)>) -> Option<f64> {
+        c.map(|(_, c)| c.position[0])
     }
 
     #[test]
@@ -844,17 +848,20 @@ mod tests {
     }
 
     #[test]
-    fn a_command_far_ahead_or_past_the_bound_is_taken_at_once() {
+    fn a_command_far_ahead_is_taken_at_once_and_a_full_queue_gives_up_its_oldest() {
         let mut early = EarlyCommands::default();
         // Stamped on another clock (the wall clock's seconds since 1970): not a tick to come.
         assert_eq!(position(early.offer(1.0, 1.7e9, cmd(0.5))), Some(0.5));
         assert_eq!(position(early.offer(1.0, 2.0 + 1e-6, cmd(0.6))), Some(0.6));
-        // The queue is bounded: the 65th early command is taken at once.
+        // The queue is bounded: the 65th early command pushes the oldest out, taken at once.
         for i in 0..EarlyCommands::MAX_HELD {
             let c = cmd(i as f64);
             assert!(early.offer(1.0, 1.01 + i as f64 * 1e-3, c).is_none());
         }
-        assert_eq!(position(early.offer(1.0, 1.5, cmd(0.7))), Some(0.7));
+        let out = early.offer(1.0, 1.5, cmd(0.7));
+        assert_eq!(out.map(|(s, c)| (s, c.position[0])), Some((1.01, 0.0)));
+        assert_eq!(early.held.len(), EarlyCommands::MAX_HELD);
+        assert_eq!(early.held.back().map(|(s, _)| *s), Some(1.5));
     }
 
     #[test]
