@@ -153,16 +153,8 @@ fn gait_params_of(path: &std::path::Path) -> anyhow::Result<GaitParams> {
         params_files: vec![path.display().to_string()],
         ..Default::default()
     };
-    let mut map = serde_norway::Mapping::new();
-    for (k, v) in node_runtime::node_parameters(&args, "gait_planner", "/")? {
-        if !gait_planner::node::NODE_PARAMS.contains(&k.as_str())
-            && !node_runtime::COMMON_PARAMS.contains(&k.as_str())
-        {
-            map.insert(serde_norway::Value::String(k), v);
-        }
-    }
-    serde_norway::from_value(serde_norway::Value::Mapping(map))
-        .with_context(|| format!("gait_planner parameters in {}", path.display()))
+    let params = node_runtime::node_parameters(&args, "gait_planner", "/")?;
+    gait_planner::node::gait_params(&params).with_context(|| path.display().to_string())
 }
 
 /// The highest `thread_priority` a parameter file gives any node of the walk's fleet

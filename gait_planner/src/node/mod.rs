@@ -77,7 +77,7 @@ const STAND_PARAM: &str = "stand_at_start";
 /// Whether tick k's messages go out at `/clock` k - 1, a tick ahead (simulated time only).
 const AHEAD_PARAM: &str = "plan_ahead";
 /// The node's own parameters, beside the gait's ([`GaitParams`]), read at start only.
-pub const NODE_PARAMS: [&str; 5] = [
+const NODE_PARAMS: [&str; 5] = [
     ROBOT_PARAM,
     LEG_MAP_PARAM,
     ODOM_TF_PARAM,
@@ -145,8 +145,9 @@ fn serve_pause(
 }
 
 /// The gait parameters in the node's parameter map (the robot file, the node's other own
-/// parameters and those every node takes aside).
-fn gait_params(
+/// parameters and those every node takes aside): what the node reads at start, and what
+/// `biped walk` reads from its `--params` file to plan the same walk.
+pub fn gait_params(
     params: &std::collections::BTreeMap<String, serde_norway::Value>,
 ) -> anyhow::Result<GaitParams> {
     let mut map = serde_norway::Mapping::new();
