@@ -24,8 +24,11 @@ pub struct PhaseAt {
 pub struct Recording {
     /// Newest `/clock` value (ns).
     pub clock_ns: i64,
-    /// The planner's phase per tick.
-    pub phases: BTreeMap<i64, PhaseAt>,
+    /// The planner's phase per tick (`insert_phase` adds to it, keeping `walk`).
+    phases: BTreeMap<i64, PhaseAt>,
+    /// The walk's first non-idle tick and the first idle tick after it, kept as phases come
+    /// (`biped walk` asks for them at every message: a scan each time grew with the walk).
+    walk: WalkSpan,
     /// The commanded leg joints per tick (ik_solver's `joint_commands`): name → rad.
     pub commands: BTreeMap<i64, Vec<(String, f64)>>,
     /// Measured joint positions per tick (sim_bridge's `joint_states`).
@@ -55,6 +58,57 @@ pub struct StopEvent {
     pub answered_ns: Option<i64>,
     /// `~/reset` (or `~/pause` false) answered.
     pub reset_ns: Option<i64>,
+}
+
+/// Where the walk starts and ends in the phases recorded so far.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+struct WalkSpan {
+    start_ns: Option<i64>,
+    end_ns: Option<i64>,
+}
+
+impl WalkSpan {
+    /// Found by a scan of every phase: the first non-idle one, then the first idle one after.
+    fn scan(phases: &BTreeMap<i64, PhaseAt>) -> Self {
+        let start_ns = phases
+            .iter()
+            .find(|(_, p)| p.kind != PhaseKind::Idle)
+            .map(|(&t, _)| t);
+        let end_ns = start_ns.and_then(|s| {
+            phases
+                .range(s..)
+                .find(|(_, p)| p.kind == PhaseKind::Idle)
+                .map(|(&t, _)| t)
+        });
+        Self { start_ns, end_ns }
+    }
+
+    /// After `idle` (or not) was recorded at `t_ns`, over `was` (what that tick held
+    /// before, if anything): the span, scanning again only when the insert can move the
+    /// start or take away the end (phases out of order, or a tick said again otherwise).
+    fn after_insert(
+        self,
+        phases: &BTreeMap<i64, PhaseAt>,
+        t_ns: i64,
+        idle: bool,
+        was: Option<bool>,
+    ) -> Self {
+        let rescan = match (self.start_ns, idle) {
+            (None, false) => true,
+            (Some(s), false) => t_ns < s || self.end_ns == Some(t_ns),
+            (s, true) => s == Some(t_ns) && was == Some(false),
+        };
+        if rescan {
+            return Self::scan(phases);
+        }
+        match (self.start_ns, self.end_ns) {
+            (Some(s), end) if idle && t_ns > s && end.is_none_or(|e| t_ns < e) => Self {
+                start_ns: Some(s),
+                end_ns: Some(t_ns),
+            },
+            _ => self,
+        }
+    }
 }
 
 fn drain<M: serde::de::DeserializeOwned + 'static>(
@@ -93,15 +147,14 @@ impl Recording {
         fall: &Subscription<StringMsg>,
     ) {
         let u = &mut self.unreadable;
+        let mut phases = Vec::new();
         drain(phase, "gait/phase", u, |m| {
             if let Ok(kind) = m.phase.parse::<PhaseKind>() {
-                self.phases.insert(
-                    m.header.stamp.to_nanos(),
-                    PhaseAt {
-                        kind,
-                        step_index: m.step_index,
-                    },
-                );
+                let at = PhaseAt {
+                    kind,
+                    step_index: m.step_index,
+                };
+                phases.push((m.header.stamp.to_nanos(), at));
             }
         });
         drain(commands, "joint_commands", u, |m| {
@@ -138,23 +191,34 @@ impl Recording {
                 self.fall = Some((t, m.data));
             }
         });
+        for (t_ns, at) in phases {
+            self.insert_phase(t_ns, at);
+        }
+    }
+
+    /// Records the planner's phase at `t_ns` (a tick said again replaces what it said).
+    pub fn insert_phase(&mut self, t_ns: i64, at: PhaseAt) {
+        let idle = at.kind == PhaseKind::Idle;
+        let was = self
+            .phases
+            .insert(t_ns, at)
+            .map(|p| p.kind == PhaseKind::Idle);
+        self.walk = self.walk.after_insert(&self.phases, t_ns, idle, was);
+    }
+
+    /// The planner's phase per tick.
+    pub fn phases(&self) -> &BTreeMap<i64, PhaseAt> {
+        &self.phases
     }
 
     /// The first tick of the walk (the first phase other than idle), ns.
     pub fn walk_start_ns(&self) -> Option<i64> {
-        self.phases
-            .iter()
-            .find(|(_, p)| p.kind != PhaseKind::Idle)
-            .map(|(&t, _)| t)
+        self.walk.start_ns
     }
 
     /// The first idle tick after the walk, ns.
     pub fn walk_end_ns(&self) -> Option<i64> {
-        let start = self.walk_start_ns()?;
-        self.phases
-            .range(start..)
-            .find(|(_, p)| p.kind == PhaseKind::Idle)
-            .map(|(&t, _)| t)
+        self.walk.end_ns
     }
 
     /// When the recording ends (ns): `tail_s` after the walk ended, or 0.5 s after a fall.
@@ -222,7 +286,7 @@ mod tests {
                 kind: PhaseKind::Idle,
                 step_index: 0,
             };
-            rec.phases.insert(t, idle);
+            rec.insert_phase(t, idle);
             rec.commands.insert(t, Vec::new());
             rec.states.insert(t, JointState::default());
             rec.base.insert(t, Isometry3::identity());
@@ -235,6 +299,80 @@ mod tests {
         rec.support.insert(40, Vec::new());
         assert!(rec.received_through(30));
         assert!(!rec.received_through(31), "phases stop at 30");
+    }
+
+    // The walk's start and end, kept as phases come, in order (hand-computed), and against
+    // a scan of every phase after each insert of a shuffled stream with ticks said again.
+    #[test]
+    fn the_walk_span_is_kept_as_phases_come_in_any_order() {
+        use super::{PhaseAt, Recording, WalkSpan};
+        use gait_planner::PhaseKind;
+        let at = |kind| PhaseAt {
+            kind,
+            step_index: 0,
+        };
+        let mut rec = Recording::default();
+        let kinds = [
+            PhaseKind::Idle,
+            PhaseKind::Idle,
+            PhaseKind::Shift,
+            PhaseKind::HalfStep,
+            PhaseKind::Idle,
+            PhaseKind::Idle,
+            PhaseKind::Step,
+            PhaseKind::Idle,
+        ];
+        let mut seen = Vec::new();
+        for (t, k) in kinds.iter().enumerate() {
+            rec.insert_phase(t as i64 * 10, at(*k));
+            seen.push((rec.walk_start_ns(), rec.walk_end_ns()));
+        }
+        assert_eq!(
+            seen,
+            [
+                (None, None),
+                (None, None),
+                (Some(20), None),
+                (Some(20), None),
+                (Some(20), Some(40)),
+                (Some(20), Some(40)),
+                (Some(20), Some(40)),
+                (Some(20), Some(40)),
+            ]
+        );
+        // The end said again as a walking phase moves the end to the next idle tick.
+        rec.insert_phase(40, at(PhaseKind::Shift));
+        assert_eq!(
+            (rec.walk_start_ns(), rec.walk_end_ns()),
+            (Some(20), Some(50))
+        );
+        // The start said again as idle: the walk starts at the next walking tick.
+        rec.insert_phase(20, at(PhaseKind::Idle));
+        assert_eq!(
+            (rec.walk_start_ns(), rec.walk_end_ns()),
+            (Some(30), Some(50))
+        );
+
+        // Any order, ticks said again with another phase: always what a full scan finds.
+        let mut rec = Recording::default();
+        let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+        for _ in 0..2000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let t = (x % 97) as i64 * 10;
+            let kind = if (x >> 20).is_multiple_of(3) {
+                PhaseKind::Step
+            } else {
+                PhaseKind::Idle
+            };
+            rec.insert_phase(t, at(kind));
+            assert_eq!(
+                rec.walk,
+                WalkSpan::scan(rec.phases()),
+                "after {kind:?} at {t}"
+            );
+        }
     }
 
     #[test]

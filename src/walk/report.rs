@@ -224,7 +224,7 @@ fn stop_measures(
             }
         }
         let phase = rec
-            .phases
+            .phases()
             .range(..=t0)
             .next_back()
             .map_or(PhaseKind::Idle, |(_, p)| p.kind);
@@ -297,7 +297,7 @@ pub fn summarize(
         .context("the planner never started the walk (no phase other than idle on gait/phase)")?;
     let end_ns = rec.walk_end_ns();
     let phase_at = |t: i64| {
-        rec.phases
+        rec.phases()
             .range(..=t)
             .next_back()
             .map_or(PhaseKind::Idle, |(_, p)| p.kind)
