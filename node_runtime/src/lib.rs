@@ -60,3 +60,10 @@ pub use params::{
 };
 pub use priority::THREAD_PRIORITY_PARAM;
 pub use wait::WaitBound;
+
+/// Runs a burst of publishes so that each reader process gets them as one datagram
+/// (RustDDS's `coalesce_sends`, our patch: `patches/README.md`). For a node that
+/// publishes several topics at one instant, to the same readers: what it saves is the
+/// system calls, datagrams and wake-ups of all but one. Samples go out when the burst
+/// returns; in-process (composed) readers are not concerned.
+pub use ros2_client::dds::rustdds::coalesce_sends;

@@ -505,17 +505,20 @@ fn publish(
     phase_pub: &node_runtime::Publisher<GaitPhase>,
     (phase, targets): &(GaitPhase, Option<AnkleTargets>),
 ) {
-    if let Some(targets) = targets
-        && let Err(e) = targets_pub.publish(targets.clone())
-    {
-        ros.error_throttled(
-            "publish gait/ankle_targets",
-            &format!("publish gait/ankle_targets: {e}"),
-        );
-    }
-    if let Err(e) = phase_pub.publish(phase.clone()) {
-        ros.error_throttled("publish gait/phase", &format!("publish gait/phase: {e}"));
-    }
+    // One datagram to each reader process for both (`node_runtime::coalesce_sends`).
+    node_runtime::coalesce_sends(|| {
+        if let Some(targets) = targets
+            && let Err(e) = targets_pub.publish(targets.clone())
+        {
+            ros.error_throttled(
+                "publish gait/ankle_targets",
+                &format!("publish gait/ankle_targets: {e}"),
+            );
+        }
+        if let Err(e) = phase_pub.publish(phase.clone()) {
+            ros.error_throttled("publish gait/phase", &format!("publish gait/phase: {e}"));
+        }
+    });
 }
 
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
@@ -857,35 +860,46 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     frame_id: "odom".into(),
                 };
                 let view = planner.balance_view(&sample);
-                if let Err(e) = markers_pub.publish(markers::balance_markers(&view, &header)) {
-                    ros.error_throttled(
-                        "publish gait/markers",
-                        &format!("publish gait/markers: {e}"),
-                    );
-                }
-                match odom.tick(
+                let odom_now = odom.tick(
                     &model,
                     &sample,
                     1.0 / rate,
                     sent.0.header.clone(),
                     &base_frame,
-                ) {
-                    Ok(Some(o)) => {
-                        if let Some(tf_pub) = &tf_pub {
-                            let tf = TFMessage {
-                                transforms: vec![o.transform()],
-                            };
-                            if let Err(e) = tf_pub.publish(tf) {
-                                ros.error_throttled("publish /tf", &format!("publish /tf: {e}"));
+                );
+                // The observers' topics: one datagram to each reader process.
+                node_runtime::coalesce_sends(|| {
+                    if let Err(e) = markers_pub.publish(markers::balance_markers(&view, &header))
+                    {
+                        ros.error_throttled(
+                            "publish gait/markers",
+                            &format!("publish gait/markers: {e}"),
+                        );
+                    }
+                    match odom_now {
+                        Ok(Some(o)) => {
+                            if let Some(tf_pub) = &tf_pub {
+                                let tf = TFMessage {
+                                    transforms: vec![o.transform()],
+                                };
+                                if let Err(e) = tf_pub.publish(tf) {
+                                    ros.error_throttled(
+                                        "publish /tf",
+                                        &format!("publish /tf: {e}"),
+                                    );
+                                }
+                            }
+                            if let Err(e) = odom_pub.publish(o) {
+                                ros.error_throttled(
+                                    "publish odom",
+                                    &format!("publish odom: {e}"),
+                                );
                             }
                         }
-                        if let Err(e) = odom_pub.publish(o) {
-                            ros.error_throttled("publish odom", &format!("publish odom: {e}"));
-                        }
+                        Ok(None) => {}
+                        Err(e) => ros.error_throttled("odom", &format!("odom: {e}")),
                     }
-                    Ok(None) => {}
-                    Err(e) => ros.error_throttled("odom", &format!("odom: {e}")),
-                }
+                });
                 last_sent = Some(sent);
                 planned = Some(k);
             }

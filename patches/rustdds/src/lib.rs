@@ -224,6 +224,8 @@ pub use dds::{
   typedesc::TypeDesc,
   with_key::{datareader::SelectByKey, WriteOptions, WriteOptionsBuilder},
 };
+/// One datagram per destination for a burst of writes: see its documentation.
+pub use rtps::send_batch::coalesce_sends;
 /// Needed to specify serialized data representation in case it is other than
 /// CDR.
 pub use serialization::RepresentationIdentifier;

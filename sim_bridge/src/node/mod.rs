@@ -63,7 +63,7 @@ use biped_msgs::msg::{
 };
 use biped_msgs::srv::SetBool;
 use ik_solver::LegRoleMap;
-use node_runtime::{Host, NodeSetup, Publisher, RosNode};
+use node_runtime::{Host, NodeSetup, Publisher, RosNode, coalesce_sends};
 use ros2_client::ParameterValue;
 
 const SIM_PARAMS: [&str; 8] = [
@@ -164,14 +164,30 @@ impl Outputs {
             stamp: t,
             frame_id: frame.to_owned(),
         };
-        let base = sim.base_pose();
-        let contacts = sim.contacts();
         let mut failed = Vec::new();
         let mut check = |what: &str, r: Result<(), String>| {
             if let Err(e) = r {
                 failed.push(format!("{what}: {e}"));
             }
         };
+        // Each burst goes to each reader process as one datagram (RustDDS's
+        // `coalesce_sends`; BENCHMARKS.md, "One datagram per reader a tick"): what the
+        // fleet acts on, sent at once, then the observers' topics.
+        coalesce_sends(|| self.publish_for_the_fleet(sim, t, &header, &mut check));
+        coalesce_sends(|| self.publish_for_observers(sim, &header, &mut check));
+        for f in failed {
+            ros.error_throttled("publish {f}", &format!("publish {f}"));
+        }
+    }
+
+    /// The joint states and the IMU, then `/clock`.
+    fn publish_for_the_fleet(
+        &self,
+        sim: &Sim,
+        t: Time,
+        header: &dyn Fn(&str) -> Header,
+        check: &mut dyn FnMut(&str, Result<(), String>),
+    ) {
         check(
             "joint_states",
             self.joint_states
@@ -209,6 +225,17 @@ impl Outputs {
                 .publish(Clock { clock: t })
                 .map_err(|e| e.to_string()),
         );
+    }
+
+    /// The ground truth, the contacts and their markers.
+    fn publish_for_observers(
+        &self,
+        sim: &Sim,
+        header: &dyn Fn(&str) -> Header,
+        check: &mut dyn FnMut(&str, Result<(), String>),
+    ) {
+        let base = sim.base_pose();
+        let contacts = sim.contacts();
         check(
             "sim/base_pose",
             self.base_pose
@@ -270,9 +297,6 @@ impl Outputs {
                 ))
                 .map_err(|e| e.to_string()),
         );
-        for f in failed {
-            ros.error_throttled("publish {f}", &format!("publish {f}"));
-        }
     }
 }
 

@@ -2210,6 +2210,7 @@ impl Writer {
       destinations,
       endianness: self.endianness,
       max_payload: self.max_unfragmented_serialized_payload(None),
+      max_datagram: self.datagram_budget(None),
       heartbeat_count: self
         .is_reliable()
         .then(|| Arc::clone(&self.heartbeat_message_counter)),

@@ -17,7 +17,7 @@ use speedy::Endianness;
 
 use crate::{
   dds::{ddsdata::DDSData, with_key::datawriter::WriteOptions},
-  rtps::{constant::PIGGYBACK_ACKNACK_REQUEST_PERIOD, message::MessageBuilder},
+  rtps::{constant::PIGGYBACK_ACKNACK_REQUEST_PERIOD, message::MessageBuilder, send_batch},
   structure::{
     cache_change::CacheChange,
     guid::{EntityId, GUID},
@@ -171,6 +171,9 @@ pub(crate) struct DirectRoute {
   pub endianness: Endianness,
   /// Largest payload the Writer sends unfragmented.
   pub max_payload: usize,
+  /// Largest datagram for these readers: the bound of one that gathers several
+  /// samples ([`send_batch::coalesce_sends`]).
+  pub max_datagram: usize,
   /// The Writer's heartbeat counter, for the HEARTBEAT piggybacked on each DATA
   /// (reliable, stateful writers); `None` sends no HEARTBEAT.
   pub heartbeat_count: Option<Arc<AtomicI32>>,
@@ -455,8 +458,13 @@ impl WriterSendBuffer {
       return false;
     }
     let mut builder = MessageBuilder::new();
-    if let Some(ts) = cc.write_options.source_timestamp() {
-      builder = builder.ts_msg(route.endianness, Some(ts));
+    let coalesced = send_batch::active();
+    match cc.write_options.source_timestamp() {
+      Some(ts) => builder = builder.ts_msg(route.endianness, Some(ts)),
+      // Gathered after another sample's INFO_TS, this DATA would take its time:
+      // say there is none.
+      None if coalesced => builder = builder.ts_msg(route.endianness, None),
+      None => {}
     }
     builder = builder.data_msg(
       cc,
@@ -488,6 +496,9 @@ impl WriterSendBuffer {
       }
     };
     for destination in &route.destinations {
+      if coalesced && send_batch::offer(&route.socket, *destination, &buffer, route.max_datagram) {
+        continue;
+      }
       match route.socket.send_to(&buffer, destination) {
         Ok(n) if n == buffer.len() => {}
         other => {
@@ -723,6 +734,7 @@ pub(crate) mod tests {
       destinations: vec![reader.local_addr().unwrap()],
       endianness: Endianness::LittleEndian,
       max_payload: 1000,
+      max_datagram: 1400,
       heartbeat_count: reliable.then(|| Arc::new(AtomicI32::new(7))),
     }));
     (buf, reader)
@@ -790,6 +802,150 @@ pub(crate) mod tests {
       }
     }
     (data, heartbeats)
+  }
+
+  // A user writer of the test participant (`key` tells writers apart) whose
+  // direct route leads to `destination`, with a datagram budget of
+  // `max_datagram` bytes.
+  fn writer_to(key: u8, destination: SocketAddr, max_datagram: usize) -> WriterSendBuffer {
+    use crate::structure::guid::{EntityId, EntityKind};
+    let buf = WriterSendBuffer::new(
+      GUID::new(
+        crate::structure::guid::GuidPrefix::new(b"FakeTestGUID"),
+        EntityId::new([0, 0, key], EntityKind::WRITER_NO_KEY_USER_DEFINED),
+      ),
+      format!("topic{key}"),
+      /* reliable */ true,
+      /* is_builtin */ false,
+      /* volatile */ true,
+      /* window_limit */ 100,
+      /* backlog_limit */ 100,
+      /* max_retain */ 100,
+    );
+    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket.set_nonblocking(true).unwrap();
+    buf.set_direct_route(Some(DirectRoute {
+      socket: Arc::new(socket),
+      destinations: vec![destination],
+      endianness: Endianness::LittleEndian,
+      max_payload: 1000,
+      max_datagram,
+      heartbeat_count: Some(Arc::new(AtomicI32::new(1))),
+    }));
+    hold_acknack_period(&buf);
+    buf
+  }
+
+  // The submessages of one datagram, in order: ("TS", 0, 0) for an INFO_TS,
+  // ("DATA", writer key, sn), ("HB", writer key, last sn); None when nothing
+  // has arrived (the socket is read without waiting: a datagram sent on the
+  // loopback is there when `send_to` returns).
+  fn submessages_waiting(reader: &UdpSocket) -> Option<Vec<(&'static str, u8, i64)>> {
+    use crate::{
+      messages::submessages::submessages::{InterpreterSubmessage, WriterSubmessage},
+      rtps::{message::Message, submessage::SubmessageBody},
+    };
+    reader.set_nonblocking(true).unwrap();
+    let mut datagram = [0u8; 4096];
+    let got = reader.recv(&mut datagram);
+    reader.set_nonblocking(false).unwrap();
+    let n = match got {
+      Ok(n) => n,
+      Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => return None,
+      Err(e) => panic!("recv: {e}"),
+    };
+    let message =
+      Message::read_from_buffer(&bytes::Bytes::copy_from_slice(&datagram[..n])).unwrap();
+    Some(
+      message
+        .submessages()
+        .into_iter()
+        .map(|sub| match sub.body {
+          SubmessageBody::Interpreter(InterpreterSubmessage::InfoTimestamp(..)) => ("TS", 0, 0),
+          SubmessageBody::Writer(WriterSubmessage::Data(d, _)) => {
+            ("DATA", d.writer_id.entity_key[2], i64::from(d.writer_sn))
+          }
+          SubmessageBody::Writer(WriterSubmessage::Heartbeat(h, _)) => {
+            ("HB", h.writer_id.entity_key[2], i64::from(h.last_sn))
+          }
+          _ => ("other", 0, 0),
+        })
+        .collect(),
+    )
+  }
+
+  // Inside `coalesce_sends`, two writers' samples for one reader participant
+  // wait for the end of the burst and go out as one datagram, in write order,
+  // each DATA with its own INFO_TS and HEARTBEAT; outside, one datagram each.
+  #[test]
+  fn a_burst_of_writes_to_one_destination_goes_out_as_one_datagram() {
+    let reader = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let to = reader.local_addr().unwrap();
+    let (a, b) = (writer_to(1, to, 1400), writer_to(2, to, 1400));
+    crate::coalesce_sends(|| {
+      assert!(admit(&a, 8).sent_directly);
+      assert!(admit(&b, 8).sent_directly);
+      assert!(admit(&a, 8).sent_directly);
+      assert_eq!(submessages_waiting(&reader), None, "sent before the burst ended");
+    });
+    let sample = |key, sn| [("TS", 0, 0), ("DATA", key, sn), ("HB", key, sn)];
+    assert_eq!(
+      submessages_waiting(&reader),
+      Some([sample(1, 1), sample(2, 1), sample(1, 2)].concat())
+    );
+    assert_eq!(submessages_waiting(&reader), None, "one datagram");
+    assert_eq!(
+      a.last_and_sent_sequence_numbers(),
+      (SequenceNumber::new(2), SequenceNumber::new(2))
+    );
+
+    assert!(admit(&b, 8).sent_directly);
+    assert_eq!(submessages_waiting(&reader), Some(sample(2, 2).to_vec()));
+    assert_eq!(submessages_waiting(&reader), None);
+  }
+
+  // A gathered datagram stays within the writers' datagram budget: the sample
+  // that would overflow it sends what was gathered and starts the next one.
+  // Each destination gets its own datagrams; a nested burst joins the outer.
+  #[test]
+  fn a_burst_is_cut_at_the_datagram_budget_and_kept_apart_per_destination() {
+    let (r1, r2) = (
+      UdpSocket::bind("127.0.0.1:0").unwrap(),
+      UdpSocket::bind("127.0.0.1:0").unwrap(),
+    );
+    // One sample's message, measured: the header, then its submessages.
+    let probe = writer_to(9, r1.local_addr().unwrap(), 1400);
+    admit(&probe, 8);
+    let mut datagram = [0u8; 4096];
+    let one = r1.recv(&mut datagram).unwrap();
+    let budget = 20 + 2 * (one - 20); // room for two samples, not three
+    let a = writer_to(1, r1.local_addr().unwrap(), budget);
+    let b = writer_to(2, r2.local_addr().unwrap(), budget);
+    crate::coalesce_sends(|| {
+      for _ in 0..3 {
+        admit(&a, 8);
+        crate::coalesce_sends(|| admit(&b, 8));
+      }
+      let first = submessages_waiting(&r1).expect("the full datagram went out");
+      let data = |d: &[(&str, u8, i64)]| -> Vec<i64> {
+        d.iter().filter(|s| s.0 == "DATA").map(|s| s.2).collect()
+      };
+      assert_eq!(data(&first), [1, 2]);
+      assert_eq!(data(&submessages_waiting(&r2).unwrap()), [1, 2]);
+      assert_eq!(submessages_waiting(&r1), None, "the third waits");
+      crate::coalesce_sends(|| {});
+      assert_eq!(submessages_waiting(&r1), None, "an inner burst does not send");
+    });
+    let data = |r: &UdpSocket| -> Vec<i64> {
+      submessages_waiting(r)
+        .unwrap()
+        .iter()
+        .filter(|s| s.0 == "DATA")
+        .map(|s| s.2)
+        .collect()
+    };
+    assert_eq!(data(&r1), [3]);
+    assert_eq!(data(&r2), [3]);
   }
 
   // With a direct route the writing thread sends the sample itself, DATA with
