@@ -130,6 +130,21 @@ impl<M: RosMessageBound> Publisher<M> {
         self.dds.publish(message)
     }
 
+    /// How many subscriptions take this publisher's messages: those of its process (when
+    /// composed) and those matched on DDS, as `ros` (the node that made it) has discovered
+    /// them. For a message costly to build that only viewers read (markers), as rclcpp
+    /// nodes check `get_subscription_count()` before building theirs.
+    pub fn subscription_count(&self, ros: &crate::RosNode) -> usize {
+        let local = self.local.as_ref().map_or(0, |(topic, _)| {
+            // A subscription gone leaves its queue closed until the next delivery.
+            lock(&topic.subscribers)
+                .iter()
+                .filter(|tx| !tx.is_closed())
+                .count()
+        });
+        local + self.dds.get_subscription_count(&ros.node)
+    }
+
     /// The DDS publisher's GID (what subscribers' message info names).
     pub fn gid(&self) -> Gid {
         self.dds.gid()

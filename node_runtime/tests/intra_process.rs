@@ -229,3 +229,51 @@ fn an_outside_subscriber_that_joins_late_gets_a_composed_publisher_s_messages() 
     assert_eq!(got, both, "in-process");
     assert_eq!(peer_got, both, "outside");
 }
+
+/// A publisher counts the subscriptions that take its messages, in its process and outside
+/// once discovered, as rclcpp's `get_subscription_count` does: what a node looks at before
+/// building messages only viewers read (the planner's and the simulator's markers).
+#[test]
+fn a_publisher_counts_the_subscriptions_in_its_process_and_outside() {
+    if !in_private_network(
+        "a_publisher_counts_the_subscriptions_in_its_process_and_outside",
+        231,
+    ) {
+        return;
+    }
+    let (inside, outside) = (composed(), composed());
+    let mut talker = node(&inside, "talker");
+    let talk = talker.publisher::<StringMsg>("views").unwrap();
+    // The count of DDS subscriptions is kept by the node's spinner, on its executor.
+    let spin = talker.executor().unwrap();
+    let settled = |expected: usize| {
+        let deadline = Instant::now() + Duration::from_secs(20);
+        loop {
+            while spin.try_tick() {}
+            let n = talk.subscription_count(&talker);
+            if n == expected {
+                // Stays so while discovery goes on.
+                for _ in 0..25 {
+                    while spin.try_tick() {}
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+                return talk.subscription_count(&talker);
+            }
+            if Instant::now() > deadline {
+                return n;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    assert_eq!(settled(0), 0, "nobody yet");
+    let mut listener = node(&inside, "listener");
+    let listen = listener.subscription::<StringMsg>("views").unwrap();
+    assert_eq!(settled(1), 1, "the subscriber in the process, once");
+    let mut peer = node(&outside, "peer");
+    let peer_listen = peer.subscription::<StringMsg>("views").unwrap();
+    assert_eq!(settled(2), 2, "and the one outside, once discovered");
+    drop(peer_listen);
+    assert_eq!(settled(1), 1, "the one outside gone");
+    drop(listen);
+    assert_eq!(settled(0), 0, "both gone");
+}

@@ -859,7 +859,9 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     stamp: now,
                     frame_id: "odom".into(),
                 };
-                let view = planner.balance_view(&sample);
+                // Built only while someone looks: the markers are for viewers alone.
+                let markers = (markers_pub.subscription_count(&ros) > 0)
+                    .then(|| markers::balance_markers(&planner.balance_view(&sample), &header));
                 let odom_now = odom.tick(
                     &model,
                     &sample,
@@ -869,7 +871,8 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 );
                 // The observers' topics: one datagram to each reader process.
                 node_runtime::coalesce_sends(|| {
-                    if let Err(e) = markers_pub.publish(markers::balance_markers(&view, &header))
+                    if let Some(m) = markers
+                        && let Err(e) = markers_pub.publish(m)
                     {
                         ros.error_throttled(
                             "publish gait/markers",

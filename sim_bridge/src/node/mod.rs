@@ -171,10 +171,10 @@ impl Outputs {
             }
         };
         // Each burst goes to each reader process as one datagram (RustDDS's
-        // `coalesce_sends`; BENCHMARKS.md, "One datagram per reader a tick"): what the
+        // `coalesce_sends`; BENCHMARKS.md, "One datagram per reader process a tick"): what the
         // fleet acts on, sent at once, then the observers' topics.
         coalesce_sends(|| self.publish_for_the_fleet(sim, t, &header, &mut check));
-        coalesce_sends(|| self.publish_for_observers(sim, &header, &mut check));
+        coalesce_sends(|| self.publish_for_observers(ros, sim, &header, &mut check));
         for f in failed {
             ros.error_throttled("publish {f}", &format!("publish {f}"));
         }
@@ -230,6 +230,7 @@ impl Outputs {
     /// The ground truth, the contacts and their markers.
     fn publish_for_observers(
         &self,
+        ros: &RosNode,
         sim: &Sim,
         header: &dyn Fn(&str) -> Header,
         check: &mut dyn FnMut(&str, Result<(), String>),
@@ -287,16 +288,19 @@ impl Outputs {
                 })
                 .map_err(|e| e.to_string()),
         );
-        check(
-            "sim/markers",
-            self.markers
-                .publish(measured_markers(
-                    &header(&self.world_frame),
-                    contacts.cop_world_m,
-                    &contacts.support_polygon,
-                ))
-                .map_err(|e| e.to_string()),
-        );
+        // Built only while someone looks: the markers are for viewers alone.
+        if self.markers.subscription_count(ros) > 0 {
+            check(
+                "sim/markers",
+                self.markers
+                    .publish(measured_markers(
+                        &header(&self.world_frame),
+                        contacts.cop_world_m,
+                        &contacts.support_polygon,
+                    ))
+                    .map_err(|e| e.to_string()),
+            );
+        }
     }
 }
 
