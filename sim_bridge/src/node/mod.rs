@@ -180,7 +180,7 @@ impl Outputs {
         }
     }
 
-    /// The joint states and the IMU, then `/clock`.
+    /// The IMU and the joint states, then `/clock`.
     fn publish_for_the_fleet(
         &self,
         sim: &Sim,
@@ -188,18 +188,8 @@ impl Outputs {
         header: &dyn Fn(&str) -> Header,
         check: &mut dyn FnMut(&str, Result<(), String>),
     ) {
-        check(
-            "joint_states",
-            self.joint_states
-                .publish(JointState {
-                    header: header(""),
-                    name: sim.joint_names().to_vec(),
-                    position: sim.joint_positions_rad(),
-                    velocity: sim.joint_velocities_rad_s(),
-                    effort: Vec::new(),
-                })
-                .map_err(|e| e.to_string()),
-        );
+        // The IMU first: only the joint bridge reads it, so the burst's datagram to the
+        // joint bridge, the lockstep's next hop, is the first gathered and the first sent.
         let imu = sim.imu();
         check(
             "imu/data",
@@ -211,6 +201,18 @@ impl Outputs {
                     linear_acceleration: (&imu.specific_force_m_s2).into(),
                     // Ground truth: no error, but no covariance claimed either (0: unknown).
                     ..Imu::default()
+                })
+                .map_err(|e| e.to_string()),
+        );
+        check(
+            "joint_states",
+            self.joint_states
+                .publish(JointState {
+                    header: header(""),
+                    name: sim.joint_names().to_vec(),
+                    position: sim.joint_positions_rad(),
+                    velocity: sim.joint_velocities_rad_s(),
+                    effort: Vec::new(),
                 })
                 .map_err(|e| e.to_string()),
         );

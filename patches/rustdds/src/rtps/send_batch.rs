@@ -61,8 +61,9 @@ thread_local! {
 /// one datagram per destination when `f` returns (or unwinds), instead of one
 /// per sample and destination. Nested calls join the outermost one.
 ///
-/// Samples sent so wait for the end of `f`: wrap a burst of writes, not a loop
-/// that waits on something.
+/// The datagrams go out in the order their destinations were first written to
+/// in the burst. Samples sent so wait for the end of `f`: wrap a burst of
+/// writes, not a loop that waits on something.
 pub fn coalesce_sends<R>(f: impl FnOnce() -> R) -> R {
   let outermost = BATCH.with(|b| {
     let mut b = b.borrow_mut();
