@@ -157,7 +157,7 @@ struct Outputs {
 }
 
 impl Outputs {
-    /// Publishes the state at the simulator's present time: the joint states and the IMU,
+    /// Publishes the state at the simulator's present time: the IMU and the joint states,
     /// then `/clock`, then the ground truth and the contact topics.
     fn publish(&self, ros: &RosNode, sim: &Sim, t: Time) {
         let header = |frame: &str| Header {

@@ -63,7 +63,10 @@ thread_local! {
 ///
 /// The datagrams go out in the order their destinations were first written to
 /// in the burst. Samples sent so wait for the end of `f`: wrap a burst of
-/// writes, not a loop that waits on something.
+/// writes, not a loop that waits on something. A reliable write that blocks
+/// inside a burst on a full send window waits for acknowledgements of what was
+/// sent before it, not of what the burst has gathered, which is still unsent:
+/// write a writer once per burst, or leave room in its window.
 pub fn coalesce_sends<R>(f: impl FnOnce() -> R) -> R {
   let outermost = BATCH.with(|b| {
     let mut b = b.borrow_mut();
