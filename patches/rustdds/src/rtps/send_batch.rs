@@ -126,7 +126,10 @@ pub(crate) fn offer(
         p.bytes.extend_from_slice(body);
       }
       Some(p) => {
-        trace!("coalesced datagram to {destination} full at {} bytes", p.bytes.len());
+        trace!(
+          "coalesced datagram to {destination} full at {} bytes",
+          p.bytes.len()
+        );
         p.send();
         p.bytes.clear();
         p.bytes.extend_from_slice(message);

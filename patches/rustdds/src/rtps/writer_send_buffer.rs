@@ -886,7 +886,11 @@ pub(crate) mod tests {
       assert!(admit(&a, 8).sent_directly);
       assert!(admit(&b, 8).sent_directly);
       assert!(admit(&a, 8).sent_directly);
-      assert_eq!(submessages_waiting(&reader), None, "sent before the burst ended");
+      assert_eq!(
+        submessages_waiting(&reader),
+        None,
+        "sent before the burst ended"
+      );
     });
     let sample = |key, sn| [("TS", 0, 0), ("DATA", key, sn), ("HB", key, sn)];
     assert_eq!(
@@ -934,7 +938,11 @@ pub(crate) mod tests {
       assert_eq!(data(&submessages_waiting(&r2).unwrap()), [1, 2]);
       assert_eq!(submessages_waiting(&r1), None, "the third waits");
       crate::coalesce_sends(|| {});
-      assert_eq!(submessages_waiting(&r1), None, "an inner burst does not send");
+      assert_eq!(
+        submessages_waiting(&r1),
+        None,
+        "an inner burst does not send"
+      );
     });
     let data = |r: &UdpSocket| -> Vec<i64> {
       submessages_waiting(r)
