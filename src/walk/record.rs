@@ -84,8 +84,9 @@ impl WalkSpan {
     }
 
     /// After `idle` (or not) was recorded at `t_ns`, over `was` (what that tick held
-    /// before, if anything): the span, scanning again only when the insert can move the
-    /// start or take away the end (phases out of order, or a tick said again otherwise).
+    /// before, if anything): the span. A phase after every other one (how one publisher's
+    /// phases come) or a tick said again as it was moves it in O(1); anything else (out of
+    /// order, a tick said again otherwise) scans again.
     fn after_insert(
         self,
         phases: &BTreeMap<i64, PhaseAt>,
@@ -93,16 +94,19 @@ impl WalkSpan {
         idle: bool,
         was: Option<bool>,
     ) -> Self {
-        let rescan = match (self.start_ns, idle) {
-            (None, false) => true,
-            (Some(s), false) => t_ns < s || self.end_ns == Some(t_ns),
-            (s, true) => s == Some(t_ns) && was == Some(false),
-        };
-        if rescan {
+        if was == Some(idle) {
+            return self;
+        }
+        let newest = was.is_none() && phases.last_key_value().is_some_and(|(&t, _)| t == t_ns);
+        if !newest {
             return Self::scan(phases);
         }
-        match (self.start_ns, self.end_ns) {
-            (Some(s), end) if idle && t_ns > s && end.is_none_or(|e| t_ns < e) => Self {
+        match (self.start_ns, self.end_ns, idle) {
+            (None, _, false) => Self {
+                start_ns: Some(t_ns),
+                end_ns: None,
+            },
+            (Some(s), None, true) => Self {
                 start_ns: Some(s),
                 end_ns: Some(t_ns),
             },
@@ -351,6 +355,27 @@ mod tests {
         assert_eq!(
             (rec.walk_start_ns(), rec.walk_end_ns()),
             (Some(30), Some(50))
+        );
+
+        // The newest tick said again otherwise: the walk's end comes and goes with it.
+        let mut rec = Recording::default();
+        for (t, k) in [
+            (0, PhaseKind::Idle),
+            (10, PhaseKind::Step),
+            (20, PhaseKind::Idle),
+        ] {
+            rec.insert_phase(t, at(k));
+        }
+        assert_eq!(
+            (rec.walk_start_ns(), rec.walk_end_ns()),
+            (Some(10), Some(20))
+        );
+        rec.insert_phase(20, at(PhaseKind::Step));
+        assert_eq!((rec.walk_start_ns(), rec.walk_end_ns()), (Some(10), None));
+        rec.insert_phase(20, at(PhaseKind::Idle));
+        assert_eq!(
+            (rec.walk_start_ns(), rec.walk_end_ns()),
+            (Some(10), Some(20))
         );
 
         // Any order, ticks said again with another phase: always what a full scan finds.

@@ -25,8 +25,8 @@ use std::{
 #[allow(unused_imports)]
 use log::{debug, trace};
 
-/// The RTPS message header: "RTPS", version, vendor, GUID prefix.
-const RTPS_HEADER_LEN: usize = 20;
+// The RTPS message header: "RTPS", version, vendor, GUID prefix.
+use crate::rtps::message::RTPS_MESSAGE_HEADER_SIZE;
 
 /// Datagrams being gathered for one destination.
 struct Pending {
@@ -109,7 +109,7 @@ pub(crate) fn offer(
   message: &[u8],
   max_datagram: usize,
 ) -> bool {
-  if message.len() < RTPS_HEADER_LEN {
+  if message.len() < RTPS_MESSAGE_HEADER_SIZE {
     return false;
   }
   BATCH.with(|b| {
@@ -117,10 +117,10 @@ pub(crate) fn offer(
     let Some(batch) = b.as_mut() else {
       return false;
     };
-    let (header, body) = message.split_at(RTPS_HEADER_LEN);
+    let (header, body) = message.split_at(RTPS_MESSAGE_HEADER_SIZE);
     match batch
       .iter_mut()
-      .find(|p| p.destination == destination && p.bytes[..RTPS_HEADER_LEN] == *header)
+      .find(|p| p.destination == destination && p.bytes[..RTPS_MESSAGE_HEADER_SIZE] == *header)
     {
       Some(p) if p.bytes.len() + body.len() <= max_datagram => {
         p.bytes.extend_from_slice(body);
