@@ -367,12 +367,14 @@ impl RtpsWriterProxy {
 
   // Drop tracked changes below ack_base (they are already accounted for).
   fn prune_below_ack_base(&mut self) {
-    // Only touch the map when there is actually something below ack_base to drop
-    // (the common stalled-gap case has nothing below ack_base, so we skip the
-    // split_off entirely and keep the receive path cheap).
-    if matches!(self.changes.keys().next(), Some(&first) if first < self.ack_base) {
-      // split_off returns everything from the key onward; keep that, drop the rest.
-      self.changes = self.changes.split_off(&self.ack_base);
+    // In place (the common case drops one entry, the stalled-gap case none):
+    // `split_off` would move what is kept into a newly allocated node on every
+    // received sample.
+    while let Some(first) = self.changes.first_entry() {
+      if *first.key() >= self.ack_base {
+        break;
+      }
+      first.remove();
     }
   }
 

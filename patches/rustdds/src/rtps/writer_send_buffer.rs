@@ -1,6 +1,6 @@
 use std::{
   cmp::max,
-  collections::BTreeMap,
+  collections::VecDeque,
   net::{SocketAddr, UdpSocket},
   sync::{
     atomic::{AtomicI32, Ordering},
@@ -25,6 +25,65 @@ use crate::{
     time::Timestamp,
   },
 };
+
+/// A writer's retained samples: consecutive sequence numbers, oldest first.
+/// Samples come in at the newest end (each the sequence number after the last
+/// one) and leave from the oldest, so a ring buffer holds them and reuses its
+/// storage, where a map keyed by sequence number allocates and frees nodes as
+/// samples come and go.
+#[derive(Default)]
+struct SampleHistory {
+  /// The sequence number of `samples[0]` (meaningless while empty).
+  oldest: SequenceNumber,
+  samples: VecDeque<CacheChange>,
+}
+
+impl SampleHistory {
+  fn len(&self) -> usize {
+    self.samples.len()
+  }
+
+  /// The oldest retained sample's sequence number.
+  fn oldest(&self) -> Option<SequenceNumber> {
+    (!self.samples.is_empty()).then_some(self.oldest)
+  }
+
+  /// Adds the newest sample: the one after the newest retained (any while
+  /// empty).
+  fn push(&mut self, cc: CacheChange) {
+    if self.samples.is_empty() {
+      self.oldest = cc.sequence_number;
+    }
+    debug_assert_eq!(
+      i64::from(cc.sequence_number) - i64::from(self.oldest),
+      self.samples.len() as i64,
+      "samples must come in sequence"
+    );
+    self.samples.push_back(cc);
+  }
+
+  /// Drops the oldest sample, returning its sequence number.
+  fn pop_oldest(&mut self) -> Option<SequenceNumber> {
+    let cc = self.samples.pop_front()?;
+    self.oldest = cc.sequence_number.plus_1();
+    Some(cc.sequence_number)
+  }
+
+  fn get(&self, sn: SequenceNumber) -> Option<&CacheChange> {
+    let index = usize::try_from(i64::from(sn) - i64::from(self.oldest)).ok()?;
+    self.samples.get(index)
+  }
+
+  /// Drops every sample before `sn`, returning how many.
+  fn remove_before(&mut self, sn: SequenceNumber) -> usize {
+    let mut removed = 0;
+    while self.oldest().is_some_and(|oldest| oldest < sn) {
+      self.pop_oldest();
+      removed += 1;
+    }
+    removed
+  }
+}
 
 /// A sample admitted into the [`WriterSendBuffer`].
 #[derive(Clone, Copy, Debug)]
@@ -51,10 +110,10 @@ pub(crate) enum Admission {
 // waiter) might be able to make progress.
 struct Inner {
   // --- the send buffer proper (replaces the old HistoryBuffer) ---
-  // Keyed by SequenceNumber, which is allocated here under the lock and is thus
-  // strictly monotonic and unique. This is the single source of truth for the
-  // Writer's outgoing samples (send, repair, fragmentation, eviction).
-  changes: BTreeMap<SequenceNumber, CacheChange>,
+  // Sequence numbers are allocated here under the lock and are thus strictly
+  // monotonic and unique. This is the single source of truth for the Writer's
+  // outgoing samples (send, repair, fragmentation, eviction).
+  changes: SampleHistory,
   first_seq: SequenceNumber, // oldest still retained (default 1)
   last_seq: SequenceNumber,  // latest allocated (default 0 == nothing yet)
 
@@ -225,7 +284,7 @@ impl WriterSendBuffer {
     Self {
       shared: Arc::new(Shared {
         inner: Mutex::new(Inner {
-          changes: BTreeMap::new(),
+          changes: SampleHistory::default(),
           first_seq: SequenceNumber::new(1),
           last_seq: SequenceNumber::new(0),
           window_limit: window_limit.max(1),
@@ -403,7 +462,7 @@ impl WriterSendBuffer {
     // system clock does).
     let write_options = write_options.with_source_timestamp_or(Timestamp::now());
     let cc = CacheChange::new(shared.writer_guid, seq, write_options, data);
-    inner.changes.insert(seq, cc);
+    inner.changes.push(cc);
     inner.last_seq = seq;
 
     // KeepLast "newest wins" bound. Applied on insert for:
@@ -427,13 +486,25 @@ impl WriterSendBuffer {
         || (shared.reliable_writer && shared.volatile && !inner.reliable_readers_present));
     if trim_keep_last {
       while inner.changes.len() > inner.max_retain {
-        // BTreeMap keeps keys sorted, so the first entry is the oldest SN.
-        let oldest = match inner.changes.keys().next().copied() {
-          Some(sn) => sn,
-          None => break,
+        let Some(oldest) = inner.changes.pop_oldest() else {
+          break;
         };
-        inner.changes.remove(&oldest);
         inner.first_seq = oldest.plus_1();
+      }
+    } else if inner.reliable_readers_present && !shared.is_builtin {
+      // A reliable writer with reliable readers keeps beyond its KeepLast depth only
+      // what some reader has not acknowledged yet: the oldest samples every reader
+      // has acknowledged (and so the writer has sent) go now, as the periodic
+      // cache cleaning would drop them seconds later (a writer at 1 kHz would
+      // hold thousands of samples, all freed at once in the event loop).
+      while inner.changes.len() > inner.max_retain {
+        match inner.changes.oldest() {
+          Some(oldest) if oldest < inner.acked_before && oldest <= inner.sent_frontier => {
+            inner.changes.pop_oldest();
+            inner.first_seq = oldest.plus_1();
+          }
+          _ => break,
+        }
       }
     }
     seq
@@ -449,7 +520,7 @@ impl WriterSendBuffer {
     if inner.sent_frontier.plus_1() != seq {
       return false;
     }
-    let Some(cc) = inner.changes.get(&seq) else {
+    let Some(cc) = inner.changes.get(seq) else {
       return false; // trimmed at once (cannot happen for the newest sample)
     };
     if cc.data_value.payload_size() > route.max_payload
@@ -613,25 +684,21 @@ impl WriterSendBuffer {
   /// Returns an owned `CacheChange` (a cheap `Bytes`-backed clone) so the
   /// caller can serialize and transmit without holding the lock.
   pub fn get_by_sn(&self, sn: SequenceNumber) -> Option<CacheChange> {
-    self.shared.inner.lock().unwrap().changes.get(&sn).cloned()
+    self.shared.inner.lock().unwrap().changes.get(sn).cloned()
   }
 
   /// Evict all samples with sequence number strictly less than `remove_before`.
   pub fn remove_changes_before(&self, remove_before: SequenceNumber) {
     let shared = &*self.shared;
     let mut inner = shared.inner.lock().unwrap();
-    let count_before = inner.changes.len();
-    inner.changes = inner.changes.split_off(&remove_before);
+    let removed = inner.changes.remove_before(remove_before);
     if remove_before > inner.first_seq {
       inner.first_seq = remove_before;
     }
-    let count_after = inner.changes.len();
-    if count_before != count_after {
+    if removed > 0 {
       debug!(
         "WriterSendBuffer: removed {} change(s) before {:?} topic={}",
-        count_before - count_after,
-        remove_before,
-        shared.topic_name
+        removed, remove_before, shared.topic_name
       );
     }
   }
@@ -1217,6 +1284,123 @@ pub(crate) mod tests {
     assert!(admit_now(&buf, may_block_opts()));
     assert!(admit_now(&buf, may_block_opts())); // still admitted despite tiny
                                                 // backlog limit
+  }
+
+  // A reliable writer whose reliable readers acknowledge as it writes retains its
+  // KeepLast depth and what some reader has not acknowledged, not every sample
+  // written since the last periodic cache cleaning (6 s: thousands at 1 kHz).
+  #[test]
+  fn acknowledged_samples_beyond_the_depth_go_on_insert() {
+    let depth = 3;
+    let buf = WriterSendBuffer::new(
+      GUID::GUID_UNKNOWN,
+      "t".to_string(),
+      /* reliable_writer */ true,
+      /* is_builtin */ false,
+      /* volatile */ true,
+      /* window_limit */ 1000,
+      /* backlog_limit */ 1000,
+      /* max_retain */ depth,
+    );
+    // A reliable reader matched, nothing acknowledged yet.
+    buf.set_acked_frontier(Some(SequenceNumber::new(1)));
+    for n in 1..=50 {
+      assert!(admit_now(&buf, WriteOptions::default()));
+      buf.set_sent_frontier(SequenceNumber::new(n));
+      // The reader acknowledges all but the newest two samples.
+      buf.set_acked_frontier(Some(SequenceNumber::new(n - 1)));
+    }
+    // Written 50, acknowledged before 49 when 50 went in: 48 (acknowledged, within
+    // the depth), 49 and 50 (not acknowledged).
+    assert_eq!(buf.retained_len(), depth);
+    assert_eq!(buf.first_change_sequence_number(), SequenceNumber::new(48));
+    assert!(buf.get_by_sn(SequenceNumber::new(47)).is_none());
+
+    // The reader stops acknowledging: everything it has not acknowledged stays
+    // for repair, however far beyond the depth.
+    for n in 51..=60 {
+      assert!(admit_now(&buf, WriteOptions::default()));
+      buf.set_sent_frontier(SequenceNumber::new(n));
+    }
+    assert_eq!(buf.retained_len(), 12); // 49..=60
+    assert!(buf.get_by_sn(SequenceNumber::new(49)).is_some());
+
+    // It acknowledges everything, even beyond what the writer counts as sent:
+    // what was sent goes down to the depth, what was not stays.
+    buf.set_acked_frontier(Some(SequenceNumber::new(66)));
+    for _ in 61..=65 {
+      assert!(admit_now(&buf, WriteOptions::default()));
+    }
+    assert_eq!(buf.retained_len(), 5); // 61..=65
+    assert_eq!(buf.first_change_sequence_number(), SequenceNumber::new(61));
+  }
+
+  // The ring of retained samples finds each by its sequence number as samples
+  // come in at one end and leave at the other, around the ring's wrap.
+  #[test]
+  fn sample_history_finds_samples_by_sequence_number() {
+    let change = |sn: i64| {
+      CacheChange::new(
+        GUID::GUID_UNKNOWN,
+        SequenceNumber::new(sn),
+        WriteOptions::default(),
+        sample(),
+      )
+    };
+    let sn = SequenceNumber::new;
+    let mut h = SampleHistory::default();
+    assert_eq!(h.oldest(), None);
+    assert!(h.get(sn(0)).is_none());
+    for n in 5..=8 {
+      h.push(change(n));
+    }
+    assert_eq!((h.len(), h.oldest()), (4, Some(sn(5))));
+    for n in 1..=9 {
+      let found = h.get(sn(n)).map(|cc| cc.sequence_number);
+      assert_eq!(found, (5..=8).contains(&n).then(|| sn(n)), "{n}");
+    }
+    // Slide the window far past the ring's first capacity.
+    for n in 9..=100 {
+      h.push(change(n));
+      assert_eq!(h.pop_oldest(), Some(sn(n - 4)));
+    }
+    assert_eq!((h.len(), h.oldest()), (4, Some(sn(97))));
+    assert_eq!(h.get(sn(99)).map(|cc| cc.sequence_number), Some(sn(99)));
+    assert!(h.get(sn(96)).is_none() && h.get(sn(101)).is_none());
+    assert_eq!(h.remove_before(sn(99)), 2);
+    assert_eq!(h.remove_before(sn(50)), 0);
+    assert_eq!(h.remove_before(sn(1000)), 2);
+    assert_eq!((h.len(), h.oldest(), h.pop_oldest()), (0, None, None));
+    // Empty, it takes any sequence number next (a writer's buffer after cleaning).
+    h.push(change(500));
+    assert_eq!(h.get(sn(500)).map(|cc| cc.sequence_number), Some(sn(500)));
+  }
+
+  // Cleaning removes in place what it drops and keeps the rest.
+  #[test]
+  fn remove_changes_before_keeps_the_rest() {
+    let buf = WriterSendBuffer::new(
+      GUID::GUID_UNKNOWN,
+      "t".to_string(),
+      true,
+      false,
+      /* volatile */ false,
+      1000,
+      1000,
+      1000,
+    );
+    for _ in 1..=20 {
+      assert!(admit_now(&buf, WriteOptions::default()));
+    }
+    buf.remove_changes_before(SequenceNumber::new(15));
+    assert_eq!(buf.retained_len(), 6);
+    assert_eq!(buf.first_change_sequence_number(), SequenceNumber::new(15));
+    assert!(buf.get_by_sn(SequenceNumber::new(14)).is_none());
+    assert!(buf.get_by_sn(SequenceNumber::new(20)).is_some());
+    buf.remove_changes_before(SequenceNumber::new(3)); // nothing before 15 left
+    assert_eq!(buf.retained_len(), 6);
+    buf.remove_changes_before(SequenceNumber::new(100));
+    assert_eq!(buf.retained_len(), 0);
   }
 
   // A best-effort (non-blocking, DDS-default) writer is never throttled at
