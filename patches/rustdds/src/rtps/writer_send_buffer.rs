@@ -479,32 +479,29 @@ impl WriterSendBuffer {
     //    ms) heartbeat cadence -- collapsing reliable throughput. Trimming to
     //    KeepLast here keeps only the recent samples (correct for volatile
     //    durability); once a reliable reader matches, `reliable_readers_present`
-    //    flips true and we retain everything again for repair.
+    //    flips true and what some reader has not acknowledged is kept for repair.
     // Built-in (discovery) writers are always exempt to never lose discovery data.
     let trim_keep_last = !shared.is_builtin
       && (!may_block
         || (shared.reliable_writer && shared.volatile && !inner.reliable_readers_present));
-    if trim_keep_last {
-      while inner.changes.len() > inner.max_retain {
-        let Some(oldest) = inner.changes.pop_oldest() else {
-          break;
-        };
-        inner.first_seq = oldest.plus_1();
-      }
-    } else if inner.reliable_readers_present && !shared.is_builtin {
-      // A reliable writer with reliable readers keeps beyond its KeepLast depth only
-      // what some reader has not acknowledged yet: the oldest samples every reader
-      // has acknowledged (and so the writer has sent) go now, as the periodic
-      // cache cleaning would drop them seconds later (a writer at 1 kHz would
-      // hold thousands of samples, all freed at once in the event loop).
-      while inner.changes.len() > inner.max_retain {
-        match inner.changes.oldest() {
-          Some(oldest) if oldest < inner.acked_before && oldest <= inner.sent_frontier => {
-            inner.changes.pop_oldest();
-            inner.first_seq = oldest.plus_1();
-          }
-          _ => break,
+    // A reliable writer with reliable readers keeps beyond its KeepLast depth only
+    // what some reader has not acknowledged yet: the oldest samples every reader has
+    // acknowledged (and so the writer has sent) go now, as the periodic cache
+    // cleaning would drop them seconds later (a writer at 1 kHz would hold thousands
+    // of samples, all freed at once in the event loop).
+    let trim_acknowledged = !shared.is_builtin && inner.reliable_readers_present;
+    while inner.changes.len() > inner.max_retain {
+      match inner.changes.oldest() {
+        Some(oldest)
+          if trim_keep_last
+            || (trim_acknowledged
+              && oldest < inner.acked_before
+              && oldest <= inner.sent_frontier) =>
+        {
+          inner.changes.pop_oldest();
+          inner.first_seq = oldest.plus_1();
         }
+        _ => break,
       }
     }
     seq
