@@ -81,3 +81,94 @@ impl Log {
         self.log(node, LogLevel::Error, msg);
     }
 }
+
+/// Repeated messages logged at most once a `period` per key (a topic, a device), each logged
+/// one saying how many of its key were held back since: a fault repeated every control tick
+/// shows once a second, and one key's fault never hides another's. Time is passed in.
+#[derive(Debug)]
+pub struct Throttle {
+    period: std::time::Duration,
+    /// Per key: when its last message was logged, and how many were held back since.
+    last: std::collections::BTreeMap<String, (std::time::Instant, u64)>,
+}
+
+impl Throttle {
+    /// Once a `period` per key.
+    pub fn new(period: std::time::Duration) -> Self {
+        Self {
+            period,
+            last: std::collections::BTreeMap::new(),
+        }
+    }
+
+    /// The line to log for `msg` of `key` at `now`: `msg` itself, with the count of the
+    /// key's messages held back since its last logged one if any; `None` if held back.
+    pub fn admit(&mut self, key: &str, msg: &str, now: std::time::Instant) -> Option<String> {
+        match self.last.get_mut(key) {
+            Some((last, held)) if now.saturating_duration_since(*last) < self.period => {
+                *held += 1;
+                None
+            }
+            Some(entry) => {
+                let held = std::mem::replace(entry, (now, 0)).1;
+                Some(if held > 0 {
+                    format!("{msg} ({held} more like it in the last {:?})", self.period)
+                } else {
+                    msg.to_owned()
+                })
+            }
+            None => {
+                self.last.insert(key.to_owned(), (now, 0));
+                Some(msg.to_owned())
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::{Duration, Instant};
+
+    use super::Throttle;
+
+    #[test]
+    fn a_throttle_holds_back_repeats_per_key_and_counts_them() {
+        let t0 = Instant::now();
+        let ms = |n: u64| t0 + Duration::from_millis(n);
+        let mut t = Throttle::new(Duration::from_secs(1));
+        assert_eq!(
+            t.admit("publish imu/data", "a", ms(0)).as_deref(),
+            Some("a")
+        );
+        // Every 10 ms for the rest of the second: held back, counted.
+        for n in 1..100 {
+            assert_eq!(t.admit("publish imu/data", "a", ms(10 * n)), None);
+        }
+        // Another key's first message, inside the same second: logged.
+        assert_eq!(
+            t.admit("publish /clock", "b", ms(500)).as_deref(),
+            Some("b")
+        );
+        assert_eq!(t.admit("publish /clock", "b", ms(600)), None);
+        // A second after the first: logged with the 99 held back, then the count restarts.
+        assert_eq!(
+            t.admit("publish imu/data", "a", ms(1000)).as_deref(),
+            Some("a (99 more like it in the last 1s)")
+        );
+        assert_eq!(t.admit("publish imu/data", "a", ms(1500)), None);
+        assert_eq!(
+            t.admit("publish imu/data", "a", ms(2000)).as_deref(),
+            Some("a (1 more like it in the last 1s)")
+        );
+        // The other key's second is over at 1.5 s: its one held back message is counted.
+        assert_eq!(
+            t.admit("publish /clock", "c", ms(1500)).as_deref(),
+            Some("c (1 more like it in the last 1s)")
+        );
+        // Nothing held back since: the plain message.
+        assert_eq!(
+            t.admit("publish /clock", "c", ms(2600)).as_deref(),
+            Some("c")
+        );
+    }
+}

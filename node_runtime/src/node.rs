@@ -16,7 +16,7 @@ use crate::context::{SendThread, context_from_env, context_from_env_sending_on};
 use crate::cpu_latency::{CPU_DMA_LATENCY_PARAM, CpuLatencyRequest, cpu_dma_latency_of};
 use crate::error::RosError;
 use crate::local::{Bus, Publisher, RosMessageBound, Subscription};
-use crate::log::Log;
+use crate::log::{Log, Throttle};
 use crate::params::{ParameterCheck, node_parameters, read_at_startup_only};
 use crate::priority::{
     SCHED_FIFO, THREAD_PRIORITY_PARAM, run_this_thread_realtime, thread_priority_of,
@@ -336,8 +336,8 @@ pub struct RosNode {
     context: Context,
     /// The process's in-process topics, when composed.
     bus: Option<std::sync::Arc<Bus>>,
-    /// When each throttled message was last logged, and how many were held back since.
-    throttled: std::sync::Mutex<BTreeMap<String, (std::time::Instant, u64)>>,
+    /// The throttled messages: once a second per key.
+    throttled: std::sync::Mutex<Throttle>,
 }
 
 impl std::fmt::Debug for RosNode {
@@ -434,7 +434,7 @@ impl RosNode {
             log,
             context,
             bus: host.bus.clone(),
-            throttled: std::sync::Mutex::new(BTreeMap::new()),
+            throttled: std::sync::Mutex::new(Throttle::new(std::time::Duration::from_secs(1))),
         })
     }
 
@@ -662,24 +662,10 @@ impl RosNode {
         let Ok(mut t) = self.throttled.lock() else {
             return log(self, msg);
         };
-        let now = std::time::Instant::now();
-        match t.get_mut(key) {
-            Some((last, held)) if now.duration_since(*last) < std::time::Duration::from_secs(1) => {
-                *held += 1;
-            }
-            entry => {
-                let held = entry.map_or(0, |e| e.1);
-                t.insert(key.to_owned(), (now, 0));
-                drop(t);
-                if held > 0 {
-                    log(
-                        self,
-                        &format!("{msg} ({held} more like it in the last second)"),
-                    );
-                } else {
-                    log(self, msg);
-                }
-            }
+        let line = t.admit(key, msg, std::time::Instant::now());
+        drop(t);
+        if let Some(line) = line {
+            log(self, &line);
         }
     }
 }

@@ -164,10 +164,12 @@ impl Outputs {
             stamp: t,
             frame_id: frame.to_owned(),
         };
+        // (topic, error): one throttle per topic, so a failing topic does not hold back the
+        // error of another.
         let mut failed = Vec::new();
         let mut check = |what: &str, r: Result<(), String>| {
             if let Err(e) = r {
-                failed.push(format!("{what}: {e}"));
+                failed.push((what.to_owned(), e));
             }
         };
         // Each burst goes to each reader process as one datagram (RustDDS's
@@ -175,8 +177,8 @@ impl Outputs {
         // fleet acts on, sent at once, then the observers' topics.
         coalesce_sends(|| self.publish_for_the_fleet(sim, t, &header, &mut check));
         coalesce_sends(|| self.publish_for_observers(ros, sim, &header, &mut check));
-        for f in failed {
-            ros.error_throttled("publish {f}", &format!("publish {f}"));
+        for (what, e) in failed {
+            ros.error_throttled(&format!("publish {what}"), &format!("publish {what}: {e}"));
         }
     }
 
