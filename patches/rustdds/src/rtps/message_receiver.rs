@@ -382,6 +382,27 @@ impl MessageReceiver {
     }
   }
 
+  /// Whether a writer submessage of the message being received that names no reader
+  /// (readerId UNKNOWN) is for `reader`: the writer is the source participant's entity
+  /// `writer_entity_id`.
+  fn takes_unaddressed(&self, reader: &Reader, writer_entity_id: EntityId) -> bool {
+    let writer = GUID {
+      prefix: self.source_guid_prefix,
+      entity_id: writer_entity_id,
+    };
+    // The reader must have matched the writer (see `Reader::takes_unaddressed_from`).
+    reader.takes_unaddressed_from(writer)
+      // But there are two exceptions:
+      // 1. SPDP reader must read from unknown SPDP writers
+      //  TODO: This logic here is uglyish. Can we just inject a
+      //  presupposed writer (proxy) to the built-in reader as it is created?
+      || (writer_entity_id == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER
+        && reader.entity_id() == EntityId::SPDP_BUILTIN_PARTICIPANT_READER)
+      // 2. ParticipantStatelessReader does not contain any writers, since it is stateless
+      || (writer_entity_id == EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_WRITER
+        && reader.entity_id() == EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_READER)
+  }
+
   fn handle_submessage(&mut self, submessage: Submessage) {
     match self.secure_receiver_state.take() {
       // Note that .take() always resets the state to "None", so we must
@@ -404,19 +425,10 @@ impl MessageReceiver {
                 .available_readers
                 .values()
                 .filter(|target_reader| {
-                  // Reader must contain the writer
-                  target_reader.contains_writer(sending_writer_entity_id)
-                    // But there are two exceptions:
-                    // 1. SPDP reader must read from unknown SPDP writers
-                    //  TODO: This logic here is uglyish. Can we just inject a
-                    //  presupposed writer (proxy) to the built-in reader as it is created?
-                    || (sending_writer_entity_id == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER
-                      && target_reader.entity_id() == EntityId::SPDP_BUILTIN_PARTICIPANT_READER)
-                    // 2. ParticipantStatelessReader does not contain any writers, since it is stateless
-                    || (sending_writer_entity_id == EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_WRITER
-                      && target_reader.entity_id() == EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_READER)
+                  self.takes_unaddressed(target_reader, sending_writer_entity_id)
                 })
-                .map(Reader::entity_id).collect();
+                .map(Reader::entity_id)
+                .collect();
 
               match security_plugins_clone {
                 None => {
@@ -934,27 +946,20 @@ impl MessageReceiver {
             if receiver_entity_id == EntityId::UNKNOWN {
               let sending_writer_entity_id = decoded_writer_submessage.sender_entity_id();
 
-              if let Some(target_reader)=self.available_readers.values().find(|target_reader| {
-                (
-                // Reader must contain the writer
-                target_reader.contains_writer(sending_writer_entity_id)
-                    // But there are two exceptions:
-                    // 1. SPDP reader must read from unknown SPDP writers
-                    //  TODO: This logic here is uglyish. Can we just inject a
-                    //  presupposed writer (proxy) to the built-in reader as it is created?
-                    || (sending_writer_entity_id == EntityId::SPDP_BUILTIN_PARTICIPANT_WRITER
-                      && target_reader.entity_id() == EntityId::SPDP_BUILTIN_PARTICIPANT_READER)
-                    // 2. ParticipantStatelessReader does not contain any writers, since it is stateless
-                    || (sending_writer_entity_id == EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_WRITER
-                      && target_reader.entity_id() == EntityId::P2P_BUILTIN_PARTICIPANT_STATELESS_READER)
+              if let Some(target_reader) = self.available_readers.values().find(|target_reader| {
+                self.takes_unaddressed(target_reader, sending_writer_entity_id)
+                  && security_plugins_handle
+                    .get_plugins()
+                    .confirm_local_endpoint_guid(
+                      &approved_receiving_datareader_crypto_handles,
+                      &GUID {
+                        prefix: self.dest_guid_prefix,
+                        entity_id: target_reader.entity_id(),
+                      },
                     )
-                    &&
-                    security_plugins_handle.get_plugins()
-                    .confirm_local_endpoint_guid(&approved_receiving_datareader_crypto_handles,
-                      &GUID { prefix: self.dest_guid_prefix,entity_id: target_reader.entity_id() })
-              }){
+              }) {
                 self.handle_writer_submessage(target_reader.entity_id(), decoded_writer_submessage);
-              }else{
+              } else {
                 debug!(
                   "No matching reader found for writer submessage from {sending_writer_entity_id:?} \
                    (receiver entity id is UNKNOWN)"
@@ -1292,6 +1297,100 @@ mod tests {
 
     // Verify the color in the deserialized value is correct
     assert_eq!(deserialized_shape_type.color, "RED");
+  }
+
+  /// A reader of this participant, matched with `writers`, as discovery matches them.
+  fn reader_matched_with(entity_id: EntityId, writers: &[GUID]) -> Reader {
+    let (notification_sender, _) = crate::mio_source::notification_channel(10);
+    let (_, poll_event_sender) = mio_source::make_poll_channel().unwrap();
+    let (status_sender, _) = sync_status_channel::<DataReaderStatus>(4).unwrap();
+    let (participant_status_sender, _) = sync_status_channel(16).unwrap();
+    let (_, data_reader_command_receiver) = wake_channel::<ReaderCommand>(10, &LoopWaker::new());
+    let qos_policy = QosPolicies::qos_none();
+    let topic_cache_handle = DDSCache::new().add_new_topic(
+      "test".to_string(),
+      TypeDesc::new("test".to_string()),
+      &qos_policy,
+    );
+    let mut reader = Reader::new(
+      ReaderIngredients {
+        guid: GUID::new(GuidPrefix::new(&[1; 12]), entity_id),
+        notification_sender,
+        status_sender,
+        topic_name: "test".to_string(),
+        topic_cache_handle,
+        like_stateless: false,
+        qos_policy,
+        data_reader_command_receiver,
+        data_reader_waker: Arc::new(Mutex::new(None)),
+        poll_event_sender,
+        security_plugins: None,
+        discovery_notify: None,
+      },
+      Rc::new(UDPSender::new_with_random_port().unwrap()),
+      new_shared_timer(),
+      participant_status_sender,
+    );
+    for &writer in writers {
+      reader.matched_writer_add(
+        writer,
+        EntityId::UNKNOWN,
+        vec![],
+        vec![],
+        &QosPolicies::qos_none(),
+      );
+    }
+    reader
+  }
+
+  #[test]
+  fn unaddressed_writer_submessages_go_to_readers_matched_with_that_writer() {
+    // Two remote participants whose writers have the same entity id, as participants
+    // numbering their entities alike have; one local reader matched with each.
+    let (p1, p2, p3) = (
+      GuidPrefix::new(&[2; 12]),
+      GuidPrefix::new(&[3; 12]),
+      GuidPrefix::new(&[4; 12]),
+    );
+    let writer =
+      EntityId::create_custom_entity_id([0, 0, 7], EntityKind::WRITER_NO_KEY_USER_DEFINED);
+    let reader_of_p1 = reader_matched_with(
+      EntityId::create_custom_entity_id([0, 0, 1], EntityKind::READER_NO_KEY_USER_DEFINED),
+      &[GUID::new(p1, writer)],
+    );
+    let reader_of_p2 = reader_matched_with(
+      EntityId::create_custom_entity_id([0, 0, 2], EntityKind::READER_NO_KEY_USER_DEFINED),
+      &[GUID::new(p2, writer)],
+    );
+    // Discovery's publications reader, matched with p1's publications writer only.
+    let sedp_reader = reader_matched_with(
+      EntityId::SEDP_BUILTIN_PUBLICATIONS_READER,
+      &[GUID::new(p1, EntityId::SEDP_BUILTIN_PUBLICATIONS_WRITER)],
+    );
+
+    let waker = LoopWaker::new();
+    let (acknack_sender, _) = wake_channel(8, &waker);
+    let (spdp_liveness_sender, _) = wake_channel(8, &waker);
+    let mut receiver = MessageReceiver::new(
+      GuidPrefix::new(&[1; 12]),
+      acknack_sender,
+      spdp_liveness_sender,
+      None,
+      Rc::new(RefCell::new(InterfaceObservations::new())),
+    );
+    receiver.source_guid_prefix = p2;
+    assert!(receiver.takes_unaddressed(&reader_of_p2, writer));
+    assert!(!receiver.takes_unaddressed(&reader_of_p1, writer));
+    receiver.source_guid_prefix = p1;
+    assert!(receiver.takes_unaddressed(&reader_of_p1, writer));
+    assert!(!receiver.takes_unaddressed(&reader_of_p2, writer));
+    // A participant none of whose writers is matched: no reader.
+    receiver.source_guid_prefix = p3;
+    assert!(!receiver.takes_unaddressed(&reader_of_p1, writer));
+    assert!(!receiver.takes_unaddressed(&reader_of_p2, writer));
+    // Discovery data is taken from a participant not matched yet, as before.
+    assert!(receiver.takes_unaddressed(&sedp_reader, EntityId::SEDP_BUILTIN_PUBLICATIONS_WRITER));
+    assert!(!receiver.takes_unaddressed(&sedp_reader, writer));
   }
 
   #[test]

@@ -524,6 +524,21 @@ impl Reader {
     }
   }
 
+  /// Whether a writer submessage from `writer` that names no reader (readerId UNKNOWN)
+  /// is for this reader. A user-defined writer's only if this reader has matched that very
+  /// writer, by its GUID: a writer of another participant may have the same entity id
+  /// (participants number their entities alike), and its DATA would be decoded here only
+  /// to be dropped as from an unmatched writer. A built-in writer's if this reader has
+  /// matched a writer of that entity id in any participant, since discovery data of a
+  /// participant not matched yet is processed too.
+  pub fn takes_unaddressed_from(&self, writer: GUID) -> bool {
+    if writer.entity_id.entity_kind.is_user_defined() {
+      !self.like_stateless && self.matched_writers.contains_key(&writer)
+    } else {
+      self.contains_writer(writer.entity_id)
+    }
+  }
+
   pub fn contains_writer(&self, entity_id: EntityId) -> bool {
     if !self.like_stateless {
       self
