@@ -83,8 +83,9 @@ impl Log {
 }
 
 /// Repeated messages logged at most once a `period` per key (a topic, a device), each logged
-/// one saying how many of its key were held back since: a fault repeated every control tick
-/// shows once a second, and one key's fault never hides another's. Time is passed in.
+/// one saying how many of its key were held back since the last logged: a fault repeated
+/// every control tick shows once a second, and one key's fault never hides another's. Time
+/// is passed in.
 #[derive(Debug)]
 pub struct Throttle {
     period: std::time::Duration,
@@ -112,7 +113,7 @@ impl Throttle {
             Some(entry) => {
                 let held = std::mem::replace(entry, (now, 0)).1;
                 Some(if held > 0 {
-                    format!("{msg} ({held} more like it in the last {:?})", self.period)
+                    format!("{msg} ({held} more like it held back since the last logged)")
                 } else {
                     msg.to_owned()
                 })
@@ -153,17 +154,17 @@ mod tests {
         // A second after the first: logged with the 99 held back, then the count restarts.
         assert_eq!(
             t.admit("publish imu/data", "a", ms(1000)).as_deref(),
-            Some("a (99 more like it in the last 1s)")
+            Some("a (99 more like it held back since the last logged)")
         );
         assert_eq!(t.admit("publish imu/data", "a", ms(1500)), None);
         assert_eq!(
             t.admit("publish imu/data", "a", ms(2000)).as_deref(),
-            Some("a (1 more like it in the last 1s)")
+            Some("a (1 more like it held back since the last logged)")
         );
         // The other key's second is over at 1.5 s: its one held back message is counted.
         assert_eq!(
             t.admit("publish /clock", "c", ms(1500)).as_deref(),
-            Some("c (1 more like it in the last 1s)")
+            Some("c (1 more like it held back since the last logged)")
         );
         // Nothing held back since: the plain message.
         assert_eq!(
