@@ -616,8 +616,20 @@ impl Drop for Fleet {
     }
 }
 
-/// Runs the fleet until interrupted. Returns an error if a node failed.
+/// Runs the fleet until interrupted. Returns an error if a node failed, or, before any
+/// node starts, if the DDS environment is unusable: a `ROS_DOMAIN_ID` or
+/// `ROS_AUTOMATIC_DISCOVERY_RANGE` that is not one (each node would refuse it and be
+/// restarted in a loop), or `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` (the nodes, separate
+/// processes, would never find each other, and no tool would find them).
 pub fn launch(o: &LaunchOptions) -> anyhow::Result<()> {
+    let (_, range) = node_runtime::ros_environment().context("biped launch")?;
+    if range == node_runtime::DiscoveryRange::Off {
+        anyhow::bail!(
+            "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: the fleet's nodes would never find each other, \
+             nor would any tool find them (OFF discovers nothing, as in ROS 2); unset it or use \
+             LOCALHOST"
+        );
+    }
     let stop = Arc::new(AtomicBool::new(false));
     {
         let s = stop.clone();

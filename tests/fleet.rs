@@ -1438,6 +1438,35 @@ fn a_node_with_discovery_off_is_found_by_no_one() {
     }
 }
 
+/// `biped launch` refuses a DDS environment its fleet cannot work in, naming it, before any
+/// node starts: discovery OFF (its nodes, separate processes, would never find each other)
+/// and a `ROS_DOMAIN_ID` that is not one (every node would refuse it, restarted in a loop).
+#[test]
+fn launch_refuses_discovery_off_and_a_bad_domain_before_starting_a_node() {
+    for (var, value) in [
+        ("ROS_AUTOMATIC_DISCOVERY_RANGE", "OFF"),
+        ("ROS_DOMAIN_ID", "seven"),
+    ] {
+        let log_dir = std::env::temp_dir().join(format!(
+            "biped-launch-refused-{}-{value}",
+            std::process::id()
+        ));
+        // Were it not refused, the fleet would run until the timeout (exit 124).
+        let err = failed_start(
+            common::in_netns("exec timeout 60 \"$@\"", 232)
+                .arg(bin_dir().join("biped"))
+                .args(["launch", "--no-respawn", "--log-dir"])
+                .arg(&log_dir)
+                .env(var, value),
+        );
+        assert!(
+            err.contains(&format!("{var}={value}")),
+            "{var}={value}: {err}"
+        );
+        assert!(!log_dir.exists(), "{var}={value}: a node was started");
+    }
+}
+
 /// The CPUs in a `Cpus_allowed_list` line of /proc (`0-1,3`).
 fn cpu_list(text: &str) -> Vec<usize> {
     let list = text
