@@ -119,6 +119,10 @@ struct DdsEnvironment {
     node_env: Vec<(String, String)>,
 }
 
+/// Samples a topic the walk's own readers keep until taken: 10 s of ticks at 100 Hz, as
+/// the bag recorder (and rosbag2) subscribe.
+const RECORDER_DEPTH: usize = 1000;
+
 /// The DDS environment of the walk: the user's, with discovery on this host by default.
 fn environment() -> anyhow::Result<DdsEnvironment> {
     let range_set = std::env::var("ROS_AUTOMATIC_DISCOVERY_RANGE").is_ok_and(|v| !v.is_empty());
@@ -596,6 +600,13 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         false,
     )?;
     let qos = node_runtime::qos::default();
+    // The walk's measurements read every tick: the simulator does not wait for this
+    // process, so its readers keep up to RECORDER_DEPTH samples a topic (as the bag
+    // recorder's), not the default 10 that a stall of this process's thread on a busy
+    // machine overflows (a CI run lost two seconds of simulated ticks so).
+    let deep = qos.clone().history(ros2_client::qos::History::KeepLast {
+        depth: RECORDER_DEPTH,
+    });
     macro_rules! sub {
         ($ty:ty, $name:literal) => {{
             let topic = node
@@ -605,7 +616,7 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                     &qos,
                 )
                 .map_err(|e| anyhow::anyhow!("topic {}: {e:?}", $name))?;
-            node.create_subscription::<$ty>(&topic, None)
+            node.create_subscription::<$ty>(&topic, Some(deep.clone()))
                 .map_err(|e| anyhow::anyhow!("subscription {}: {e:?}", $name))?
         }};
     }

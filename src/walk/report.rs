@@ -313,10 +313,22 @@ pub fn summarize(
     let mut last: Option<(f64, Isometry3<f64>)> = None;
     let (mut worst_err, mut worst_joint) = (0.0f64, String::new());
     let stop_ns = rec.end_ns(o.tail_s).unwrap_or(i64::MAX);
+    // The last tick observed, and how many were not (a tick without its joint states or
+    // base pose): the slip is not measured across them.
+    let (mut last_seen_ns, mut missed_ticks): (Option<i64>, u64) = (None, 0);
     for (&t, js) in rec.states.range(start_ns..=stop_ns) {
         let Some(base) = rec.base.get(&t) else {
             continue;
         };
+        if let Some(prev) = last_seen_ns.replace(t) {
+            let gap = ((t - prev) as f64 / dt_ns).round() as u64;
+            if gap > 1 {
+                missed_ticks += gap - 1;
+                if let Some(m) = &mut monitor {
+                    m.missed();
+                }
+            }
+        }
         let q = joints_in_model_order(model, &js.name, &js.position)?;
         let poses = model.robot().link_poses(base, &q).context(MEASURED_FK)?;
         let poly = rec.support.get(&t).filter(|p| !p.is_empty());
@@ -381,6 +393,12 @@ pub fn summarize(
     let (Some(monitor), Some((t_end, base_end))) = (monitor, last) else {
         anyhow::bail!("no joint_states and base pose were recorded during the walk");
     };
+    if missed_ticks > 0 {
+        eprintln!(
+            "biped walk: {missed_ticks} ticks of the walk came without their joint states or \
+             base pose; the report measures the others (no slip across a gap)"
+        );
+    }
     let c = planner.config();
     // Where the plan puts the feet: the midpoint between them, first tick to last (the
     // plan's world frame faces the walk's starting heading).

@@ -365,6 +365,13 @@ impl WalkMonitor {
         }
     }
 
+    /// Observations were missed since the last one (ticks the measurement never saw): each
+    /// foot's stance is measured again from its next observation, since the foot may have
+    /// been lifted and set down meanwhile; a slip is never measured across the gap.
+    pub fn missed(&mut self) {
+        self.stance_start = [None, None];
+    }
+
     /// True once a fall was observed.
     pub fn fell(&self) -> bool {
         self.fell.is_some()
@@ -466,4 +473,49 @@ pub fn run_plan(
 pub fn along_heading(start: &Isometry3<f64>, to: &Vector3<f64>) -> [f64; 2] {
     let moved = to - start.translation.vector;
     in_heading(heading_rad(start), [moved.x, moved.y])
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Isometry3;
+
+    use super::{Observation, PhaseKind, WalkMonitor};
+
+    /// The left foot standing at `x` (m), the right lifted.
+    fn left_standing_at(t_s: f64, x: f64) -> Observation {
+        Observation {
+            t_s,
+            base: Isometry3::identity(),
+            cop_margin_m: Some(0.02),
+            feet_xy_m: [[x, 0.05], [0.1, -0.05]],
+            standing: [true, false],
+            fall: None,
+        }
+    }
+
+    #[test]
+    fn a_slip_is_measured_within_a_stance_but_not_across_missed_observations() {
+        let mut m = WalkMonitor::starting_at(0.0, Isometry3::identity());
+        m.observe_state(&left_standing_at(0.00, 0.0), PhaseKind::Shift);
+        m.observe_state(&left_standing_at(0.01, 0.0005), PhaseKind::Shift);
+        let mut bridged = WalkMonitor::starting_at(0.0, Isometry3::identity());
+        bridged.observe_state(&left_standing_at(0.00, 0.0), PhaseKind::Shift);
+        bridged.observe_state(&left_standing_at(0.01, 0.0005), PhaseKind::Shift);
+        // Two seconds unseen, in which the foot stepped 17 mm: measured across the gap it
+        // would be a 17 mm slip; after `missed`, the stance starts again where it is seen.
+        m.missed();
+        m.observe_state(&left_standing_at(2.01, 0.0170), PhaseKind::Step);
+        bridged.observe_state(&left_standing_at(2.01, 0.0170), PhaseKind::Step);
+        m.observe_state(&left_standing_at(2.02, 0.0180), PhaseKind::Step);
+        let slip = |m: &WalkMonitor| {
+            m.report_at(2.02, &Isometry3::identity(), [0.0, 0.0])
+                .max_foot_slip_m
+        };
+        assert!((slip(&m) - 0.0010).abs() < 1e-12, "{}", slip(&m));
+        assert!(
+            (slip(&bridged) - 0.0170).abs() < 1e-12,
+            "{}",
+            slip(&bridged)
+        );
+    }
 }
