@@ -616,13 +616,9 @@ impl Drop for Fleet {
     }
 }
 
-/// Runs the fleet until interrupted. Returns an error if a node failed, or, before any
-/// node starts, if the DDS environment is unusable: a `ROS_DOMAIN_ID` or
-/// `ROS_AUTOMATIC_DISCOVERY_RANGE` that is not one (each node would refuse it and be
-/// restarted in a loop), or `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` (the nodes, separate
-/// processes, would never find each other, and no tool would find them).
-pub fn launch(o: &LaunchOptions) -> anyhow::Result<()> {
-    let (_, range) = node_runtime::ros_environment().context("biped launch")?;
+/// Refuses discovery OFF for a fleet of processes (`biped launch`, `biped walk`): its nodes
+/// would never find each other, nor would any tool find them.
+pub fn refuse_discovery_off(range: node_runtime::DiscoveryRange) -> anyhow::Result<()> {
     if range == node_runtime::DiscoveryRange::Off {
         anyhow::bail!(
             "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: the fleet's nodes would never find each other, \
@@ -630,6 +626,17 @@ pub fn launch(o: &LaunchOptions) -> anyhow::Result<()> {
              LOCALHOST"
         );
     }
+    Ok(())
+}
+
+/// Runs the fleet until interrupted. Returns an error if a node failed, or, before any
+/// node starts, if the DDS environment is unusable: a `ROS_DOMAIN_ID` or
+/// `ROS_AUTOMATIC_DISCOVERY_RANGE` that is not one (each node would refuse it and be
+/// restarted in a loop), or `ROS_AUTOMATIC_DISCOVERY_RANGE=OFF` (the nodes, separate
+/// processes, would never find each other, and no tool would find them).
+pub fn launch(o: &LaunchOptions) -> anyhow::Result<()> {
+    let (_, range) = node_runtime::ros_environment().context("biped launch")?;
+    refuse_discovery_off(range)?;
     let stop = Arc::new(AtomicBool::new(false));
     {
         let s = stop.clone();

@@ -134,11 +134,7 @@ fn environment() -> anyhow::Result<DdsEnvironment> {
         }
     };
     let (domain, range) = node_runtime::ros_environment_from(var)?;
-    if range == DiscoveryRange::Off {
-        anyhow::bail!(
-            "ROS_AUTOMATIC_DISCOVERY_RANGE=OFF: the walk's nodes would never find each other (OFF discovers nothing, as in ROS 2); unset it or use LOCALHOST"
-        );
-    }
+    crate::launch::refuse_discovery_off(range)?;
     let mut env = Vec::new();
     if !range_set {
         env.push(("ROS_AUTOMATIC_DISCOVERY_RANGE".into(), "LOCALHOST".into()));
