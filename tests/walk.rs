@@ -1,7 +1,7 @@
 //! `biped walk`, the main job: the fleet (gait_planner, ik_solver, joint_bridge with the sim
 //! backend) and sim_bridge (MuJoCo) over DDS, in lockstep on simulated time. Each run is in a
 //! private network namespace with only loopback, on its own ROS_DOMAIN_ID (59, 65-69, 75-78,
-//! 86, 96, 98, 99, 101, 102, 104-106, 215-217), with discovery restricted to this host by `biped walk`
+//! 86, 96, 98, 99, 101, 102, 104-106, 215-217, 219-224), with discovery restricted to this host by `biped walk`
 //! itself.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
@@ -356,6 +356,103 @@ fn a_walk_with_every_node_under_real_time_scheduling_on_one_cpu_is_the_same_walk
     for out in &outs {
         let _ = std::fs::remove_dir_all(out);
         let _ = std::fs::remove_file(out.with_extension("yaml"));
+    }
+}
+
+/// The process ids of `pid`'s children (read from /proc).
+fn children_of(pid: u32) -> Vec<i32> {
+    let Ok(entries) = std::fs::read_dir("/proc") else {
+        return vec![];
+    };
+    entries
+        .filter_map(|e| e.ok()?.file_name().to_str()?.parse::<i32>().ok())
+        .filter(|p| {
+            // /proc/PID/stat: "PID (COMM) STATE PPID ..."; COMM may hold spaces or ')'.
+            std::fs::read_to_string(format!("/proc/{p}/stat"))
+                .ok()
+                .and_then(|stat| {
+                    let after_comm = &stat[stat.rfind(')')? + 1..];
+                    after_comm.split_whitespace().nth(1)?.parse::<u32>().ok()
+                })
+                == Some(pid)
+        })
+        .collect()
+}
+
+/// Every process of a walk (`biped walk` and the nodes it starts) stopped for 50 ms and
+/// continued, again and again while it walks (`kill -STOP`/`-CONT`: what Ctrl-Z and `fg`,
+/// or a debugger attaching, do to a node), walks the same walk as an undisturbed run,
+/// number for number: lockstep on simulated time makes pauses invisible to the robot, and
+/// every process's DDS threads keep working. Each stop interrupts the threads waiting in
+/// `epoll_wait` (EINTR); RustDDS's event and discovery loops ended on it, so a process
+/// stopped once could lose its network for good and its peers' writers block on its
+/// readers, freezing the walk (`patches/README.md`, "a signal that interrupts a
+/// participant's wait").
+#[test]
+fn a_walk_whose_processes_are_stopped_and_continued_again_and_again_is_the_same_walk() {
+    use nix::sys::signal::{Signal, kill};
+    use nix::unistd::Pid;
+
+    let outs = [out_dir("undisturbed"), out_dir("stopped-again-and-again")];
+    let args = ["--steps", "4"];
+    let mut undisturbed = walked(223, &outs[0], &args, "undisturbed");
+    drop_wall_clock_figures(&mut undisturbed);
+
+    let mut walk = std::process::Command::new("unshare")
+        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
+        .arg(common::bin_dir().join("biped"))
+        .arg("walk")
+        .args(args)
+        .arg("--out")
+        .arg(&outs[1])
+        .env("ROS_DOMAIN_ID", "224")
+        .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
+        .stdout(std::fs::File::create(outs[1].with_extension("stdout")).unwrap())
+        .stderr(std::fs::File::create(outs[1].with_extension("stderr")).unwrap())
+        .spawn()
+        .expect("unshare runs (root needed for a private network namespace)");
+    // `unshare` and `sh` exec: the child is `biped walk`, its children the nodes.
+    let walk_pid = walk.id();
+    let mut rounds = 0;
+    let mut most_processes = 0;
+    while walk.try_wait().unwrap().is_none() {
+        let mut pids = children_of(walk_pid);
+        pids.push(walk_pid as i32);
+        most_processes = most_processes.max(pids.len());
+        for &p in &pids {
+            let _ = kill(Pid::from_raw(p), Signal::SIGSTOP);
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        for &p in &pids {
+            let _ = kill(Pid::from_raw(p), Signal::SIGCONT);
+        }
+        rounds += 1;
+        std::thread::sleep(std::time::Duration::from_millis(150));
+    }
+    eprintln!("{most_processes} processes stopped and continued {rounds} times");
+    let said = |ext: &str| std::fs::read_to_string(outs[1].with_extension(ext)).unwrap();
+    assert!(
+        walk.wait().unwrap().success(),
+        "the walk stopped and continued {rounds} times failed:\n{}\n{}",
+        said("stdout"),
+        said("stderr")
+    );
+    // The walk, its four nodes and robot_state_publisher were stopped, several times.
+    assert!(
+        most_processes >= 6 && rounds >= 5,
+        "{most_processes} processes stopped {rounds} times"
+    );
+    let mut disturbed = report(&outs[1]);
+    drop_wall_clock_figures(&mut disturbed);
+    assert_eq!(
+        undisturbed, disturbed,
+        "the walk stopped and continued {rounds} times"
+    );
+    for out in &outs {
+        let _ = std::fs::remove_dir_all(out);
+    }
+    for ext in ["stdout", "stderr"] {
+        let _ = std::fs::remove_file(outs[1].with_extension(ext));
     }
 }
 

@@ -733,6 +733,8 @@ impl Discovery {
       );
       match self.poll.poll(&mut events, Some(poll_timeout)) {
         Ok(_) => (),
+        // A signal interrupted the wait: not a failure, wait again.
+        Err(e) if crate::rtps::dp_event_loop::poll_was_interrupted(&e) => continue,
         Err(e) => {
           error!("Failed in waiting of poll in discovery. {e:?}");
           return;

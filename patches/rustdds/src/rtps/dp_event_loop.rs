@@ -324,6 +324,9 @@ impl DPEventLoop {
       let poll_timeout = timeout_until(ev_wrapper.shared_timer.borrow().next_deadline(), idle_cap);
       match ev_wrapper.poll.poll(&mut events, Some(poll_timeout)) {
         Ok(_) => {}
+        // A signal interrupted the wait: not a failure, wait again (see
+        // `poll_was_interrupted`).
+        Err(e) if poll_was_interrupted(&e) => continue,
         Err(e) => {
           error!("dp_event_loop poll failed: {e:?}");
           break;
@@ -1277,6 +1280,22 @@ impl DPEventLoop {
       // inform discovery?
     }
   }
+}
+
+/// Whether a failed `Poll::poll` only means a signal interrupted the wait.
+///
+/// `epoll_wait` returns `EINTR` when a signal with a handler is delivered to the
+/// waiting thread (with or without `SA_RESTART`; a process-wide handler such as
+/// one for `SIGINT` or `SIGCHLD` may run on any thread), when the process is
+/// stopped and continued (`SIGSTOP`/`SIGTSTP` then `SIGCONT`, e.g. Ctrl-Z and
+/// `fg`), and when a debugger attaches. mio passes it up as
+/// `ErrorKind::Interrupted` without retrying (mio 0.6 retried, mio 0.7 on do
+/// not, per `Poll::poll`'s notes). The participant's event loop and the
+/// discovery loop wait again; before, they ended on it, and the participant fell
+/// silent for good while its application went on (its reliable readers never
+/// acknowledged again, so the writers of its peers blocked on them).
+pub(crate) fn poll_was_interrupted(e: &std::io::Error) -> bool {
+  e.kind() == std::io::ErrorKind::Interrupted
 }
 
 #[cfg(feature = "security")]
