@@ -12,10 +12,12 @@ pub fn default() -> QosProfile {
 }
 
 /// What the fleet's publishers use: [`default`] as the other side sees it (reliable,
-/// volatile), with 1 s of unacknowledged samples at 100 Hz in the send window, and a full
-/// window fails the publish at once instead of waiting: a slow observer (a loaded
-/// rclpy, RViz or Foxglove) costs that observer samples, never the control loop its
-/// time.
+/// volatile; keep last 100), and a full send window fails the publish at once instead of
+/// waiting: the control loop never waits on a subscriber. The window is RustDDS's, 8 192
+/// unacknowledged samples (the depth does not set it: `patches/rustdds`, `pubsub.rs`), 82 s
+/// at 100 Hz: a subscriber that stops acknowledging for longer (its process stopped or
+/// hung) makes every publish on the topic fail, for every subscriber, until it
+/// acknowledges again or its participant is declared gone when its lease runs out.
 pub fn publisher() -> QosProfile {
     default()
         .history(History::KeepLast { depth: 100 })
