@@ -398,20 +398,12 @@ fn a_walk_whose_processes_are_stopped_and_continued_again_and_again_is_the_same_
     let mut undisturbed = walked(223, &outs[0], &args, "undisturbed");
     drop_wall_clock_figures(&mut undisturbed);
 
-    let mut walk = std::process::Command::new("unshare")
-        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
-        .arg(common::bin_dir().join("biped"))
-        .arg("walk")
-        .args(args)
-        .arg("--out")
-        .arg(&outs[1])
-        .env("ROS_DOMAIN_ID", "224")
-        .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
+    let mut walk = common::biped_walk_command(224, &outs[1], &args)
         .stdout(std::fs::File::create(outs[1].with_extension("stdout")).unwrap())
         .stderr(std::fs::File::create(outs[1].with_extension("stderr")).unwrap())
         .spawn()
         .expect("unshare runs (root needed for a private network namespace)");
-    // `unshare` and `sh` exec: the child is `biped walk`, its children the nodes.
+    // The child is `biped walk`, its children the nodes.
     let walk_pid = walk.id();
     let mut rounds = 0;
     let mut most_processes = 0;

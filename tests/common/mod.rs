@@ -108,18 +108,25 @@ pub fn in_netns(script: &str, domain_id: u32) -> Command {
     c
 }
 
-/// `biped walk ARGS --out OUT` in a private network namespace (only loopback) on
-/// `domain_id`, `biped walk` itself restricting discovery to the host.
-pub fn biped_walk(domain_id: u32, out: &std::path::Path, args: &[&str]) -> std::process::Output {
-    Command::new("unshare")
-        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
+/// The command `biped walk ARGS --out OUT` in a private network namespace (only loopback)
+/// on `domain_id`, `biped walk` itself restricting discovery to the host. `unshare` and
+/// `sh` exec, so the process started is `biped walk` itself.
+pub fn biped_walk_command(domain_id: u32, out: &std::path::Path, args: &[&str]) -> Command {
+    let mut c = Command::new("unshare");
+    c.args(["-n", "sh", "-c", "ip link set lo up && exec \"$@\"", "sh"])
         .arg(bin_dir().join("biped"))
         .arg("walk")
         .args(args)
         .arg("--out")
         .arg(out)
         .env("ROS_DOMAIN_ID", domain_id.to_string())
-        .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE")
+        .env_remove("ROS_AUTOMATIC_DISCOVERY_RANGE");
+    c
+}
+
+/// [`biped_walk_command`], run to its end.
+pub fn biped_walk(domain_id: u32, out: &std::path::Path, args: &[&str]) -> std::process::Output {
+    biped_walk_command(domain_id, out, args)
         .output()
         .expect("unshare runs (root needed for a private network namespace)")
 }
