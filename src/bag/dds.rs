@@ -332,6 +332,14 @@ impl RawWriter {
             .map_err(|e| format!("{e:?}"))
     }
 
+    /// Waits until every matched reliable subscriber has acknowledged all that was written,
+    /// at most `max_wait`: true if they all have (at once for a best-effort writer).
+    pub fn wait_for_acknowledgments(&self, max_wait: std::time::Duration) -> bool {
+        self.writer
+            .wait_for_acknowledgments(max_wait)
+            .unwrap_or(false)
+    }
+
     /// How many subscriptions of the topic discovery has seen (rustdds does not expose the
     /// writer's matched count).
     pub fn subscribers(&self, dp: &DomainParticipant) -> usize {

@@ -64,6 +64,10 @@ pub struct ReplaySummary {
     pub elapsed_s: f64,
 }
 
+/// How long the replay waits at its end for reliable subscribers to acknowledge every message
+/// (it returns as soon as they have; rosbag2's `--wait-for-all-acked`).
+const ACKED_WAIT: Duration = Duration::from_secs(5);
+
 /// A checked topic to play.
 struct Track {
     /// Published name.
@@ -319,8 +323,27 @@ pub fn replay(
             break;
         }
     }
-    // Let reliable writers deliver what is still in flight before they are dropped.
-    std::thread::sleep(Duration::from_millis(200));
+    // Let reliable writers deliver what is still in flight (repairs included) before they
+    // are dropped: until every subscriber has acknowledged it, at most ACKED_WAIT (a fixed
+    // 200 ms before lost the last messages' repairs to a subscriber slowed by a busy machine).
+    if !stop.load(Ordering::SeqCst) {
+        let deadline = Instant::now() + ACKED_WAIT;
+        let unacknowledged: Vec<&str> = tracks
+            .values()
+            .filter(|t| {
+                !t.writer
+                    .wait_for_acknowledgments(deadline.saturating_duration_since(Instant::now()))
+            })
+            .map(|t| t.name.as_str())
+            .collect();
+        if !unacknowledged.is_empty() {
+            eprintln!(
+                "biped replay: after {} s a subscriber had still not acknowledged every message on {}",
+                ACKED_WAIT.as_secs(),
+                unacknowledged.join(", ")
+            );
+        }
+    }
     summary.elapsed_s = start.elapsed().as_secs_f64();
     Ok(summary)
 }
