@@ -359,22 +359,18 @@ fn a_walk_with_every_node_under_real_time_scheduling_on_one_cpu_is_the_same_walk
     }
 }
 
-/// The process ids of `pid`'s children (read from /proc).
+/// The process ids of `pid`'s children: the `children` lists of its threads in /proc (as
+/// `tests/fleet.rs` reads a program's pid), empty once it is gone.
 fn children_of(pid: u32) -> Vec<i32> {
-    let Ok(entries) = std::fs::read_dir("/proc") else {
+    let Ok(tasks) = std::fs::read_dir(format!("/proc/{pid}/task")) else {
         return vec![];
     };
-    entries
-        .filter_map(|e| e.ok()?.file_name().to_str()?.parse::<i32>().ok())
-        .filter(|p| {
-            // /proc/PID/stat: "PID (COMM) STATE PPID ..."; COMM may hold spaces or ')'.
-            std::fs::read_to_string(format!("/proc/{p}/stat"))
-                .ok()
-                .and_then(|stat| {
-                    let after_comm = &stat[stat.rfind(')')? + 1..];
-                    after_comm.split_whitespace().nth(1)?.parse::<u32>().ok()
-                })
-                == Some(pid)
+    tasks
+        .filter_map(|t| std::fs::read_to_string(t.ok()?.path().join("children")).ok())
+        .flat_map(|c| {
+            c.split_whitespace()
+                .filter_map(|p| p.parse().ok())
+                .collect::<Vec<i32>>()
         })
         .collect()
 }
