@@ -33,6 +33,8 @@
 //! `cpu_dma_latency_us` parameter does: 0 keeps idle CPUs polling instead of halting),
 //! `--thread-priority P` (run the bench's and the relay's threads under SCHED_FIFO at
 //! priority P, as a node's `thread_priority` parameter does; the rclpy relay inherits it),
+//! `--solve-on-receive` (the ik_solver with its `solve_on_receive` parameter: each message
+//! solved on the DDS thread that received it, one thread wake-up fewer a message),
 //! `--dump DIR` (each run's latencies, one CSV per relay and rate, in the order sent).
 //! A benchmark, not a test: it is not part of `cargo test` or `scripts/test`.
 
@@ -110,6 +112,9 @@ struct Opts {
     priority: Option<u8>,
     /// `--dump`: where each run's latencies go, one CSV per relay and rate.
     dump: Option<PathBuf>,
+    /// `--solve-on-receive`: the ik_solver solves on the DDS thread that receives each
+    /// message (its `solve_on_receive` parameter).
+    solve_on_receive: bool,
 }
 
 impl Opts {
@@ -124,6 +129,7 @@ impl Opts {
             latency_us: None,
             priority: None,
             dump: None,
+            solve_on_receive: false,
         };
         let mut it = args.into_iter();
         while let Some(a) = it.next() {
@@ -133,6 +139,7 @@ impl Opts {
                 "--bench" => {}
                 "--write" => o.write = true,
                 "--wait-idle" => o.wait_idle = true,
+                "--solve-on-receive" => o.solve_on_receive = true,
                 "--n-100hz" => o.n_100hz = value()?.parse().context("--n-100hz")?,
                 "--n-1khz" => o.n_1khz = value()?.parse().context("--n-1khz")?,
                 "--cpu-affinity" => {
@@ -159,7 +166,7 @@ impl Opts {
                     }
                 }
                 other => bail!(
-                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...], --cpu-dma-latency-us US, --thread-priority P, --dump DIR)"
+                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...], --cpu-dma-latency-us US, --thread-priority P, --solve-on-receive, --dump DIR)"
                 ),
             }
         }
@@ -230,6 +237,9 @@ fn run() -> anyhow::Result<()> {
                     // The bench holds it already (the request is the machine's): the node
                     // holds it as a user would set it.
                     cmd.args(["-p", &format!("cpu_dma_latency_us:={us}")]);
+                }
+                if opts.solve_on_receive {
+                    cmd.args(["-p", "solve_on_receive:=true"]);
                 }
                 if let Some(priority) = opts.priority {
                     // Inherited as well; the parameter is what a user would set.

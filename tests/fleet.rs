@@ -444,6 +444,88 @@ fn an_rclpy_teleop_side_steps_the_robot_and_the_walk_ends_when_it_stops() {
     }
 }
 
+/// What the ik_solver answered the peer's 300 ankle targets (`scenario_ik`): a command for
+/// each, in order, equal to the library's closed form on the targets the peer sent, none for
+/// the one with a NaN (refused with a warning naming it), and a clean exit on Ctrl-C.
+fn assert_ik_answered_every_target(v: &Value, mode: &str) {
+    assert_eq!(
+        v["matched"], true,
+        "{mode}: the node's subscription matched"
+    );
+    let model = BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None).unwrap();
+    let legs: Vec<(String, usize)> = model
+        .leg_joints()
+        .map(|(_, j)| (j.name.clone(), j.dof))
+        .collect();
+    let sent = v["sent"].as_array().unwrap();
+    let commands = v["commands"].as_array().unwrap();
+    let stamps: Vec<i64> = commands
+        .iter()
+        .map(|c| c["stamp"].as_i64().unwrap())
+        .collect();
+    let want: Vec<i64> = (0..300)
+        .filter(|k| *k != 150)
+        .map(|k| 10_000_000_000 + k)
+        .collect();
+    assert_eq!(
+        stamps, want,
+        "{mode}: one command per finite target, in order"
+    );
+    let mut q = vec![0.0; model.robot().dof_count()];
+    for cmd in commands {
+        let k = (cmd["stamp"].as_i64().unwrap() - 10_000_000_000) as usize;
+        let t: Vec<f64> = sent[k].as_array().unwrap()[1..]
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        let target = |o: usize| ik_solver::AnkleTarget {
+            ankle_in_hip_m: nalgebra::Vector3::new(t[o], t[o + 1], t[o + 2]),
+            foot_yaw_rad: t[o + 3],
+        };
+        model.solve_legs(&target(0), &target(4), &mut q).unwrap();
+        let names: Vec<&str> = cmd["name"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|n| n.as_str().unwrap())
+            .collect();
+        assert_eq!(
+            names,
+            legs.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>()
+        );
+        for (i, (name, dof)) in legs.iter().enumerate() {
+            let got = cmd["position"][i].as_f64().unwrap();
+            assert!(
+                (got - q[*dof]).abs() < 1e-12,
+                "{mode}: target {k}, joint {name}: {got} against {}",
+                q[*dof]
+            );
+        }
+    }
+    assert!(
+        rosout_has(v, "ik_solver", &["ankle targets refused", "NaN"]),
+        "{mode}: no warning for the NaN target"
+    );
+    assert_eq!(
+        v["exits"]["ik_solver"]["returncode"], 0,
+        "{mode}: {}",
+        v["exits"]["ik_solver"]["stderr_tail"]
+    );
+}
+
+#[test]
+fn the_ik_solver_answers_every_target_alike_on_its_own_thread_or_on_the_receiving_dds_thread() {
+    let on_thread = peer("ik", 225);
+    assert_ik_answered_every_target(&on_thread, "the node's thread");
+    assert!(!rosout_has(&on_thread, "ik_solver", &["on the DDS thread"]));
+    let on_receive = peer("ik_on_receive", 226);
+    assert_ik_answered_every_target(&on_receive, "solve_on_receive");
+    assert!(
+        rosout_has(&on_receive, "ik_solver", &["on the DDS thread"]),
+        "the node did not say it solves on the DDS thread"
+    );
+}
+
 #[test]
 fn killing_ik_solver_mid_walk_makes_the_bridge_hold_the_pose() {
     let v = peer("watchdog", 62);

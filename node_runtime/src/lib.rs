@@ -14,6 +14,8 @@
 //!   alone in its process, or composed with others in one) and the started node
 //!   ([`RosNode`]: typed publishers and subscriptions, logging, the executor);
 //! - [`local`]: in-process delivery between nodes composed in one process;
+//! - [`on_receive`]: a subscription handled on the DDS thread that receives its messages
+//!   (one thread wake-up a message instead of two);
 //! - [`affinity`]: the `cpu_affinity` parameter, binding a node's process to CPUs;
 //! - [`cpu_latency`]: the `cpu_dma_latency_us` parameter, a CPU latency request held while
 //!   the node's process runs;
@@ -35,6 +37,7 @@ mod error;
 pub mod local;
 pub mod log;
 pub mod node;
+pub mod on_receive;
 pub mod params;
 pub mod priority;
 pub mod qos;
@@ -54,6 +57,7 @@ pub use log::Log;
 pub use node::{
     Host, LAUNCH_PARENT_ENV, NodeSetup, RosNode, create_node, node_main, shutdown_flag,
 };
+pub use on_receive::{OnReceive, Received};
 pub use params::{
     COMMON_PARAMS, ParameterCheck, check_known, from_parameter_value, node_parameters,
     read_at_startup, read_at_startup_only, to_parameter_value,

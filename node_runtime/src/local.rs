@@ -246,4 +246,26 @@ impl<M: RosMessageBound> Subscription<M> {
             }
         }
     }
+
+    /// Hands each message to `handler` on the thread that receives it (the participant's
+    /// DDS thread) instead of waking the node's thread: one thread wake-up a message
+    /// instead of two. The handler must be short and must not wait ([`crate::on_receive`]).
+    /// Refused for a node composed with others in one process (its in-process messages
+    /// come through the bus, not a DDS thread).
+    pub fn on_receive(
+        self,
+        handler: impl FnMut(crate::on_receive::Received<M>) + Send + 'static,
+    ) -> Result<crate::on_receive::OnReceive<M>, RosError> {
+        if self.local.is_some() {
+            return Err(RosError::Args(format!(
+                "a subscription to {}/msg/{} handled on its DDS thread: not for nodes composed in one process",
+                M::PACKAGE,
+                M::NAME
+            )));
+        }
+        Ok(crate::on_receive::OnReceive::start(
+            self.dds,
+            Box::new(handler),
+        ))
+    }
 }

@@ -312,6 +312,11 @@ impl Host {
         })
     }
 
+    /// Composed with other nodes in one process ([`Host::composed`]).
+    pub fn is_composed(&self) -> bool {
+        self.bus.is_some()
+    }
+
     /// The flag that stops the node's loops (set: stop).
     pub fn stop_flag(&self) -> std::sync::Arc<std::sync::atomic::AtomicBool> {
         self.stop.clone()

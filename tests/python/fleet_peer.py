@@ -4,7 +4,7 @@ Run inside a private network namespace (the Rust test does it). It starts the fl
 a ROS user would (`ros2 topic pub`, `ros2 param get/set`, kill a node, Ctrl-C the launcher)
 and prints what it saw as one JSON object on stdout. The assertions are the Rust test's.
 
-    python fleet_peer.py walk|teleop|watchdog|launch|sim BIN_DIR [PARAMS_YAML]
+    python fleet_peer.py walk|ik|ik_on_receive|teleop|watchdog|launch|sim BIN_DIR [PARAMS_YAML]
 """
 
 import json
@@ -293,6 +293,54 @@ def scenario_walk(bin_dir, params):
     out.update(phases=peer.phases, commands=peer.commands, rosout=peer.rosout,
                states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None,
                markers=markers)
+    out["exits"] = stop_nodes(procs)
+    return out
+
+
+def scenario_ik(bin_dir, params, on_receive=False):
+    """The ik_solver alone, fed by the peer: warm-up targets until its joint commands come
+    back, then 300 targets at about 100 Hz (stamps 10 s + k ns), the 150th with a NaN left
+    ankle x. `on_receive`: the node solves on its DDS thread (`solve_on_receive`)."""
+    extra = {"ik_solver": ["-p", "solve_on_receive:=true"]} if on_receive else None
+    procs = start_nodes(bin_dir, params, extra=extra, only=["ik_solver"])
+    peer = Peer()
+    pub = peer.node.create_publisher(AnkleTargets, "/gait/ankle_targets",
+                                     QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
+    out = {"matched": peer.wait_for_subscribers(pub)}
+
+    def targets(sec, k, nan=False):
+        m = AnkleTargets()
+        m.header.stamp.sec, m.header.stamp.nanosec = sec, k
+        m.header.frame_id = "base_link"
+        s = math.sin(k * 0.05)
+        m.left_ankle.x, m.left_ankle.y, m.left_ankle.z = 0.02 * s, 0.01 * s, -0.14 - 0.01 * s
+        m.right_ankle.x, m.right_ankle.y, m.right_ankle.z = -0.02 * s, -0.01 * s, -0.14 + 0.01 * s
+        m.left_foot_yaw, m.right_foot_yaw = 0.1 * s, -0.1 * s
+        if nan:
+            m.left_ankle.x = math.nan
+        return m
+
+    # Until a command comes back: the node's writer has matched our reader too.
+    warm = 0
+    while not peer.commands and warm < 400:
+        pub.publish(targets(1, warm))
+        warm += 1
+        peer.spin(0.05)
+    out["warm_up"] = warm
+    peer.spin(0.2)
+    peer.commands.clear()
+    sent = []
+    for k in range(300):
+        m = targets(10, k, nan=(k == 150))
+        pub.publish(m)
+        sent.append([k, m.left_ankle.x, m.left_ankle.y, m.left_ankle.z, m.left_foot_yaw,
+                     m.right_ankle.x, m.right_ankle.y, m.right_ankle.z, m.right_foot_yaw])
+        peer.spin(0.01)
+    peer.spin(10.0, lambda: len(peer.commands) >= 299 and any(
+        "ankle targets refused" in r["msg"] for r in peer.rosout))
+    peer.spin(0.3)
+    out.update(sent=[[None if isinstance(x, float) and math.isnan(x) else x for x in row] for row in sent],
+               commands=peer.commands, rosout=peer.rosout)
     out["exits"] = stop_nodes(procs)
     return out
 
@@ -987,7 +1035,9 @@ def stop_started():
 
 
 def run_scenario(scenario, bin_dir, params):
-    result = {"walk": scenario_walk, "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
+    result = {"walk": scenario_walk, "ik": scenario_ik,
+              "ik_on_receive": lambda b, p: scenario_ik(b, p, on_receive=True),
+              "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
               "watchdog": scenario_watchdog, "estop": scenario_estop, "pause": scenario_pause,
               "lifecycle": scenario_lifecycle, "supervise": scenario_supervise, "clock": scenario_clock,
               "sim_kill": scenario_sim_kill, "discovery_off": scenario_discovery_off,

@@ -7,7 +7,10 @@
 //! (nothing is published for it, so the joint bridge keeps its pose); an unreachable target
 //! or a joint limit is clamped and reported (at most once a second per kind).
 //!
-//! Parameters: `robot_description_file` (URDF path; empty for the built-in robot).
+//! Parameters: `robot_description_file` (URDF path; empty for the built-in robot),
+//! `leg_map_file`, `solve_on_receive` (bool, default false: each message is solved and its
+//! command published on the DDS thread that received it, one thread wake-up a message
+//! instead of two; no effect composed with other nodes in one process). All read at start.
 
 use std::collections::BTreeMap;
 use std::sync::atomic::Ordering;
@@ -21,6 +24,8 @@ use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
 const LEG_MAP_PARAM: &str = "leg_map_file";
+const SOLVE_ON_RECEIVE_PARAM: &str = "solve_on_receive";
+const TARGETS_TOPIC: &str = "gait/ankle_targets";
 
 /// Solves one message into a joint command; `Err` names the non-finite field.
 fn solve(
@@ -51,13 +56,70 @@ fn solve(
     Ok((js, issues.iter().map(|i| i.to_string()).collect()))
 }
 
+/// What handling a message has to say, for the node's thread to log.
+#[derive(Debug)]
+enum Report {
+    Warn(String),
+    PublishFailed(String),
+}
+
+/// The node's work on each message, wherever it runs (the node's thread, or the DDS
+/// thread with `solve_on_receive`).
+struct Solver {
+    model: BipedModel,
+    names: Vec<String>,
+    dofs: Vec<usize>,
+    publisher: node_runtime::Publisher<JointState>,
+    q: Vec<f64>,
+    last_report: BTreeMap<String, Instant>,
+}
+
+impl Solver {
+    /// Solves `msg` and publishes its command; `report` gets what is to be logged (a
+    /// joint-limit or reach issue at most once a second per kind, not once per tick).
+    fn handle(&mut self, msg: &AnkleTargets, report: &mut impl FnMut(Report)) {
+        match solve(&self.model, &self.names, &self.dofs, msg, &mut self.q) {
+            Ok((js, issues)) => {
+                for issue in issues {
+                    let key: String = issue.split(':').next().unwrap_or_default().to_owned();
+                    let due = self
+                        .last_report
+                        .get(&key)
+                        .is_none_or(|t| t.elapsed() > Duration::from_secs(1));
+                    if due {
+                        report(Report::Warn(issue));
+                        self.last_report.insert(key, Instant::now());
+                    }
+                }
+                if let Err(e) = self.publisher.publish(js) {
+                    report(Report::PublishFailed(format!(
+                        "publish joint_commands: {e}"
+                    )));
+                }
+            }
+            Err(why) => report(Report::Warn(why)),
+        }
+    }
+}
+
+fn log(ros: &RosNode, report: Report) {
+    match report {
+        Report::Warn(w) => ros.warn(&w),
+        Report::PublishFailed(e) => ros.error_throttled("publish joint_commands", &e),
+    }
+}
+
 /// Runs the node with `setup` (its arguments and parameters) on `host` until the host
 /// stops: alone in its process (the `ik_solver` binary) or composed with others in one.
 pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     setup.only_ros_args()?;
-    node_runtime::check_known(&setup.params, &[ROBOT_PARAM, LEG_MAP_PARAM])?;
+    node_runtime::check_known(
+        &setup.params,
+        &[ROBOT_PARAM, LEG_MAP_PARAM, SOLVE_ON_RECEIVE_PARAM],
+    )?;
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
     let leg_map_file = setup.str_param(LEG_MAP_PARAM, "")?;
+    let solve_on_receive = setup.bool_param(SOLVE_ON_RECEIVE_PARAM, false)?;
     let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     // The leg joints, left then right, hip to foot.
     let (names, dofs): (Vec<String>, Vec<usize>) = model
@@ -74,64 +136,83 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
             LEG_MAP_PARAM.to_string(),
             ParameterValue::String(leg_map_file.clone()),
         ),
+        (
+            SOLVE_ON_RECEIVE_PARAM.to_string(),
+            ParameterValue::Boolean(solve_on_receive),
+        ),
     ]);
     let check = |name: &str, _: &ParameterValue| -> Result<(), String> {
-        if name == ROBOT_PARAM || name == LEG_MAP_PARAM {
+        if [ROBOT_PARAM, LEG_MAP_PARAM, SOLVE_ON_RECEIVE_PARAM].contains(&name) {
             Err(node_runtime::read_at_startup_only(name))
         } else {
             Ok(())
         }
     };
+    let composed = host.is_composed();
     let mut ros = RosNode::start(&host, setup, &declared, Some(Box::new(check)))?;
     let stop = host.stop_flag();
-    let sub = ros.subscription::<AnkleTargets>("gait/ankle_targets")?;
+    let sub = ros.subscription::<AnkleTargets>(TARGETS_TOPIC)?;
     let publisher = ros.publisher::<JointState>("joint_commands")?;
     let executor = ros.executor()?;
     ros.info(&format!(
-        "ready: robot {}, solving {} leg joints",
+        "ready: robot {}, solving {} leg joints{}",
         model.robot().name(),
-        names.len()
+        names.len(),
+        match (solve_on_receive, composed) {
+            (false, _) => "",
+            (true, false) => " on the DDS thread that receives each message",
+            (true, true) => " (solve_on_receive: no effect composed, messages come in-process)",
+        }
     ));
+    let q = vec![0.0; model.robot().dof_count()];
+    let mut solver = Solver {
+        model,
+        names,
+        dofs,
+        publisher,
+        q,
+        last_report: BTreeMap::new(),
+    };
 
-    let mut q = vec![0.0; model.robot().dof_count()];
-    let mut last_report: BTreeMap<String, Instant> = BTreeMap::new();
-    executor
+    let result = executor
         .run(async {
             // The stop flag is looked at, without a message, every 100 ms.
             let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
+            if solve_on_receive && !composed {
+                // The DDS thread solves and publishes; this thread logs what it reports.
+                let (tx, rx) = smol::channel::bounded(64);
+                let on_receive = sub.on_receive(move |received| match received {
+                    Ok((msg, _)) => solver.handle(&msg, &mut |r| {
+                        // A full queue drops the report, never the command.
+                        let _ = tx.try_send(r);
+                    }),
+                    Err(e) => {
+                        let _ = tx.try_send(Report::Warn(format!(
+                            "{TARGETS_TOPIC}: unreadable message dropped: {e:?}"
+                        )));
+                    }
+                })?;
+                while !stop.load(Ordering::SeqCst) {
+                    if on_receive.failed() {
+                        anyhow::bail!(
+                            "the solver panicked on the DDS thread: no more joint commands"
+                        );
+                    }
+                    if let Some(Ok(report)) = bound.within(rx.recv()).await {
+                        log(&ros, report);
+                    }
+                }
+                return Ok(());
+            }
             while !stop.load(Ordering::SeqCst) {
-                let Some(msg) = ros
-                    .take_within(&sub, "gait/ankle_targets", &mut bound)
-                    .await
-                else {
+                let Some(msg) = ros.take_within(&sub, TARGETS_TOPIC, &mut bound).await else {
                     continue;
                 };
-                match solve(&model, &names, &dofs, &msg, &mut q) {
-                    Ok((js, issues)) => {
-                        for issue in issues {
-                            // One report per kind of issue a second, not one per tick.
-                            let key: String =
-                                issue.split(':').next().unwrap_or_default().to_owned();
-                            let due = last_report
-                                .get(&key)
-                                .is_none_or(|t| t.elapsed() > Duration::from_secs(1));
-                            if due {
-                                ros.warn(&issue);
-                                last_report.insert(key, Instant::now());
-                            }
-                        }
-                        if let Err(e) = publisher.publish(js) {
-                            ros.error_throttled(
-                                "publish joint_commands",
-                                &format!("publish joint_commands: {e}"),
-                            );
-                        }
-                    }
-                    Err(why) => ros.warn(&why),
-                }
+                solver.handle(&msg, &mut |r| log(&ros, r));
             }
+            Ok(())
         })
         .await;
     ros.info("shutting down");
-    Ok(())
+    result
 }

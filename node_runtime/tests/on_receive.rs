@@ -1,0 +1,171 @@
+//! A subscription handled on the DDS thread that receives its messages
+//! ([`node_runtime::Subscription::on_receive`]): every message, in order, on that thread;
+//! nothing after the handle is dropped; a handler that panics is dropped and the node's
+//! participant goes on; refused for composed nodes. Each test re-runs itself in a private
+//! network namespace with only loopback (root), on its own ROS_DOMAIN_ID (227-229).
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod common;
+
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
+use std::thread::ThreadId;
+use std::time::{Duration, Instant};
+
+use common::{in_private_network, node, text, until_heard};
+use node_runtime::Host;
+
+type Record = Arc<Mutex<Vec<(String, ThreadId)>>>;
+
+/// Publishes `probe` every 100 ms until `record` has it (the handler's reader has matched).
+fn until_recorded(publish: impl Fn(&str), record: &Record, probe: &str) {
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !record.lock().unwrap().iter().any(|(m, _)| m == probe) {
+        assert!(
+            Instant::now() < deadline,
+            "`{probe}` not handled within 30 s"
+        );
+        publish(probe);
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+#[test]
+fn a_subscription_handled_on_its_dds_thread_gets_every_message_in_order_there() {
+    if !in_private_network(
+        "a_subscription_handled_on_its_dds_thread_gets_every_message_in_order_there",
+        227,
+    ) {
+        return;
+    }
+    // The listener alone in its "process"; the talker another participant (composed, so
+    // that the test needs no second process: Host::process is once per process).
+    let (here, there) = (
+        Host::process().unwrap(),
+        Host::composed(Arc::new(AtomicBool::new(false))).unwrap(),
+    );
+    let (mut listener, mut talker) = (node(&here, "listener"), node(&there, "talker"));
+    let talk = talker
+        .publisher::<biped_msgs::msg::StringMsg>("chatter")
+        .unwrap();
+    let record: Record = Arc::default();
+    let into = Arc::clone(&record);
+    let handle = listener
+        .subscription::<biped_msgs::msg::StringMsg>("chatter")
+        .unwrap()
+        .on_receive(move |received| {
+            let (m, _) = received.unwrap();
+            into.lock()
+                .unwrap()
+                .push((m.data, std::thread::current().id()));
+        })
+        .unwrap();
+    until_recorded(|p| talk.publish(text(p)).unwrap(), &record, "probe");
+    record.lock().unwrap().clear();
+
+    // Keep last 10 on the reader: a node thread taking them late would lose all but the
+    // last 10 of a burst; taken as each arrives, none is lost.
+    let sent: Vec<String> = (0..200).map(|k| format!("m {k}")).collect();
+    for m in &sent {
+        talk.publish(text(m)).unwrap();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while record.lock().unwrap().len() < sent.len() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let got = record.lock().unwrap().clone();
+    let texts: Vec<&String> = got.iter().map(|(m, _)| m).collect();
+    assert_eq!(texts, sent.iter().collect::<Vec<_>>());
+    let here_thread = std::thread::current().id();
+    assert!(
+        got.iter().all(|(_, t)| *t != here_thread),
+        "a message was handled on the test's thread, not on the DDS thread"
+    );
+    assert!(!handle.failed());
+
+    // Dropped: the handler (and what it holds) is gone.
+    drop(handle);
+    assert_eq!(
+        Arc::strong_count(&record),
+        1,
+        "the handler was kept after its handle was dropped"
+    );
+}
+
+#[test]
+fn a_handler_that_panics_is_dropped_and_its_participant_goes_on() {
+    if !in_private_network(
+        "a_handler_that_panics_is_dropped_and_its_participant_goes_on",
+        228,
+    ) {
+        return;
+    }
+    let (here, there) = (
+        Host::process().unwrap(),
+        Host::composed(Arc::new(AtomicBool::new(false))).unwrap(),
+    );
+    let (mut listener, mut talker) = (node(&here, "listener"), node(&there, "talker"));
+    let talk = talker
+        .publisher::<biped_msgs::msg::StringMsg>("chatter")
+        .unwrap();
+    let record: Record = Arc::default();
+    let into = Arc::clone(&record);
+    let handle = listener
+        .subscription::<biped_msgs::msg::StringMsg>("chatter")
+        .unwrap()
+        .on_receive(move |received| {
+            let (m, _) = received.unwrap();
+            assert!(m.data != "boom", "the handler's panic");
+            into.lock()
+                .unwrap()
+                .push((m.data, std::thread::current().id()));
+        })
+        .unwrap();
+    until_recorded(|p| talk.publish(text(p)).unwrap(), &record, "probe");
+    talk.publish(text("boom")).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(30);
+    while !handle.failed() {
+        assert!(
+            Instant::now() < deadline,
+            "the panic was not noticed within 30 s"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert_eq!(
+        Arc::strong_count(&record),
+        1,
+        "the handler was kept after it panicked"
+    );
+    // The participant's DDS thread survived the panic: another subscription of the node
+    // still gets the talker's messages.
+    let other = listener
+        .subscription::<biped_msgs::msg::StringMsg>("other")
+        .unwrap();
+    let talk_other = talker
+        .publisher::<biped_msgs::msg::StringMsg>("other")
+        .unwrap();
+    until_heard(|m| talk_other.publish(m).unwrap(), &other, "still here");
+}
+
+#[test]
+fn a_composed_node_s_subscription_is_not_handled_on_a_dds_thread() {
+    if !in_private_network(
+        "a_composed_node_s_subscription_is_not_handled_on_a_dds_thread",
+        229,
+    ) {
+        return;
+    }
+    let host = Host::composed(Arc::new(AtomicBool::new(false))).unwrap();
+    let mut listener = node(&host, "listener");
+    let refused = listener
+        .subscription::<biped_msgs::msg::StringMsg>("chatter")
+        .unwrap()
+        .on_receive(|_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        refused.contains("std_msgs/msg/String") && refused.contains("composed"),
+        "{refused}"
+    );
+}
