@@ -280,11 +280,11 @@ fn a_planner_a_tick_ahead_walks_the_same_walk_and_stops_the_same_way_composed() 
 }
 
 /// Every node under real-time scheduling (`thread_priority`, SCHED_FIFO: a thread runs until
-/// it waits, never preempted by one it wakes), the four processes all bound to one CPU and,
-/// composed, the one process under the shipped `config/realtime.yaml` (priority 50 and a CPU
-/// latency request of 0 µs): nothing in the fleet waits for another thread by spinning, so
-/// the lockstep walk ends, and it is the same walk as with the normal scheduler, number for
-/// number.
+/// it waits, never preempted by one it wakes), the four processes all bound to one CPU (the
+/// IK solving on its DDS thread, `solve_on_receive`) and, composed, the one process under
+/// the shipped `config/realtime.yaml` (priority 50, a CPU latency request of 0 µs): nothing
+/// in the fleet waits for another thread by spinning, so the lockstep walk ends, and it is
+/// the same walk as with the normal scheduler, number for number.
 #[test]
 fn a_walk_with_every_node_under_real_time_scheduling_on_one_cpu_is_the_same_walk() {
     let outs = [
@@ -295,7 +295,8 @@ fn a_walk_with_every_node_under_real_time_scheduling_on_one_cpu_is_the_same_walk
     let params = outs[1].with_extension("yaml");
     std::fs::write(
         &params,
-        "/**:\n  ros__parameters:\n    thread_priority: 20\n    cpu_affinity: [0]\n",
+        "/**:\n  ros__parameters:\n    thread_priority: 20\n    cpu_affinity: [0]\n\
+         ik_solver:\n  ros__parameters:\n    solve_on_receive: true\n",
     )
     .unwrap();
     // The file users are told to pass (`biped compose` refuses a node's cpu_affinity: its
@@ -347,6 +348,14 @@ fn a_walk_with_every_node_under_real_time_scheduling_on_one_cpu_is_the_same_walk
             if out == &outs[2] { 4 } else { 0 },
             "{extra:?}: {logs}"
         );
+        // The IK solved on its DDS thread where it has one (both files ask for it).
+        let ik_said = [
+            "leg joints on the DDS thread that receives each message",
+            "(solve_on_receive: no effect composed, messages come in-process)",
+        ]
+        .map(|s| logs.contains(s));
+        let want = [out == &outs[1], out == &outs[2]];
+        assert_eq!(ik_said, want, "{extra:?}: {logs}");
     }
     assert_eq!(
         reports[0], reports[1],
