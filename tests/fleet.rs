@@ -140,6 +140,36 @@ fn assert_markers_draw_the_balance(
 }
 
 /// The planner said on /rosout that the cmd_vel stream stopped and it ended the walk.
+/// A `/joint_commands` message the peer recorded: the leg joints `legs` (name, dof) by name,
+/// in order, each position within `tol` of `want_rad` (the whole robot's joint vector).
+fn assert_leg_command(
+    cmd: &Value,
+    legs: &[(String, usize)],
+    want_rad: &[f64],
+    tol: f64,
+    what: &str,
+) {
+    let names: Vec<&str> = cmd["name"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        legs.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>(),
+        "{what}: joint names"
+    );
+    for (i, (name, dof)) in legs.iter().enumerate() {
+        let got = cmd["position"][i].as_f64().unwrap();
+        let want = want_rad[*dof];
+        assert!(
+            (got - want).abs() < tol,
+            "{what}, joint {name}: received {got}, expected {want}"
+        );
+    }
+}
+
 fn assert_timed_out(v: &Value) {
     assert!(
         rosout_has(
@@ -232,25 +262,8 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
         .collect();
     for (k, (cmd, row)) in commands.iter().zip(&plan).enumerate() {
         assert_eq!(walk[k].1, row.phase.as_str(), "tick {k}: phase");
-        let names: Vec<&str> = cmd["name"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|n| n.as_str().unwrap())
-            .collect();
-        assert_eq!(
-            names,
-            legs.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>()
-        );
-        for (i, (name, dof)) in legs.iter().enumerate() {
-            let got = cmd["position"][i].as_f64().unwrap();
-            let want = row.joints_rad[*dof];
-            assert!(
-                (got - want).abs() < 1e-6,
-                "tick {k} ({}), joint {name}: received {got}, planned {want}",
-                row.phase
-            );
-        }
+        let tick = format!("tick {k} ({})", row.phase);
+        assert_leg_command(cmd, &legs, &row.joints_rad, 1e-6, &tick);
     }
 
     assert_markers_draw_the_balance(&v, &walk, &plan, &model);
@@ -483,24 +496,7 @@ fn assert_ik_answered_every_target(v: &Value, mode: &str) {
             foot_yaw_rad: t[o + 3],
         };
         model.solve_legs(&target(0), &target(4), &mut q).unwrap();
-        let names: Vec<&str> = cmd["name"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|n| n.as_str().unwrap())
-            .collect();
-        assert_eq!(
-            names,
-            legs.iter().map(|(n, _)| n.as_str()).collect::<Vec<_>>()
-        );
-        for (i, (name, dof)) in legs.iter().enumerate() {
-            let got = cmd["position"][i].as_f64().unwrap();
-            assert!(
-                (got - q[*dof]).abs() < 1e-12,
-                "{mode}: target {k}, joint {name}: {got} against {}",
-                q[*dof]
-            );
-        }
+        assert_leg_command(cmd, &legs, &q, 1e-12, &format!("{mode}: target {k}"));
     }
     assert!(
         rosout_has(v, "ik_solver", &["ankle targets refused", "NaN"]),

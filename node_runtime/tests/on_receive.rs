@@ -12,8 +12,9 @@ use std::sync::{Arc, Mutex};
 use std::thread::ThreadId;
 use std::time::{Duration, Instant};
 
+use biped_msgs::msg::StringMsg;
 use common::{in_private_network, node, text, until_heard};
-use node_runtime::Host;
+use node_runtime::{Host, OnReceive, Publisher, RosNode};
 
 type Record = Arc<Mutex<Vec<(String, ThreadId)>>>;
 
@@ -30,6 +31,42 @@ fn until_recorded(publish: impl Fn(&str), record: &Record, probe: &str) {
     }
 }
 
+/// A listener alone in its "process" whose `chatter` is handled on its DDS thread, recording
+/// each message and the thread it ran on (panicking on `panic_on`), and a talker on another
+/// participant (composed, so that the test needs no second process: `Host::process` is once
+/// per process), once the handler has had the talker's probe.
+fn listening(
+    panic_on: &'static str,
+) -> (
+    RosNode,
+    RosNode,
+    Publisher<StringMsg>,
+    Record,
+    OnReceive<StringMsg>,
+) {
+    let (here, there) = (
+        Host::process().unwrap(),
+        Host::composed(Arc::new(AtomicBool::new(false))).unwrap(),
+    );
+    let (mut listener, mut talker) = (node(&here, "listener"), node(&there, "talker"));
+    let talk = talker.publisher::<StringMsg>("chatter").unwrap();
+    let record: Record = Arc::default();
+    let into = Arc::clone(&record);
+    let handle = listener
+        .subscription::<StringMsg>("chatter")
+        .unwrap()
+        .on_receive(move |received| {
+            let (m, _) = received.unwrap();
+            assert!(m.data != panic_on, "the handler's panic");
+            into.lock()
+                .unwrap()
+                .push((m.data, std::thread::current().id()));
+        })
+        .unwrap();
+    until_recorded(|p| talk.publish(text(p)).unwrap(), &record, "probe");
+    (listener, talker, talk, record, handle)
+}
+
 #[test]
 fn a_subscription_handled_on_its_dds_thread_gets_every_message_in_order_there() {
     if !in_private_network(
@@ -38,30 +75,7 @@ fn a_subscription_handled_on_its_dds_thread_gets_every_message_in_order_there() 
     ) {
         return;
     }
-    // The listener alone in its "process"; the talker another participant (composed, so
-    // that the test needs no second process: Host::process is once per process).
-    let (here, there) = (
-        Host::process().unwrap(),
-        Host::composed(Arc::new(AtomicBool::new(false))).unwrap(),
-    );
-    let (mut listener, mut talker) = (node(&here, "listener"), node(&there, "talker"));
-    let talk = talker
-        .publisher::<biped_msgs::msg::StringMsg>("chatter")
-        .unwrap();
-    let record: Record = Arc::default();
-    let into = Arc::clone(&record);
-    let handle = listener
-        .subscription::<biped_msgs::msg::StringMsg>("chatter")
-        .unwrap()
-        .on_receive(move |received| {
-            let (m, _) = received.unwrap();
-            into.lock()
-                .unwrap()
-                .push((m.data, std::thread::current().id()));
-        })
-        .unwrap();
-    until_recorded(|p| talk.publish(text(p)).unwrap(), &record, "probe");
-    record.lock().unwrap().clear();
+    let (_listener, _talker, talk, record, handle) = listening("");
 
     // Keep last 10 on the reader: a node thread taking them late would lose all but the
     // last 10 of a burst; taken as each arrives, none is lost.
@@ -70,11 +84,20 @@ fn a_subscription_handled_on_its_dds_thread_gets_every_message_in_order_there() 
         talk.publish(text(m)).unwrap();
         std::thread::sleep(Duration::from_millis(1));
     }
+    // (Without the probes: one published before the match may still come.)
+    let burst = || -> Vec<(String, ThreadId)> {
+        let record = record.lock().unwrap();
+        record
+            .iter()
+            .filter(|(m, _)| m != "probe")
+            .cloned()
+            .collect()
+    };
     let deadline = Instant::now() + Duration::from_secs(30);
-    while record.lock().unwrap().len() < sent.len() && Instant::now() < deadline {
+    while burst().len() < sent.len() && Instant::now() < deadline {
         std::thread::sleep(Duration::from_millis(20));
     }
-    let got = record.lock().unwrap().clone();
+    let got = burst();
     let texts: Vec<&String> = got.iter().map(|(m, _)| m).collect();
     assert_eq!(texts, sent.iter().collect::<Vec<_>>());
     let here_thread = std::thread::current().id();
@@ -101,28 +124,7 @@ fn a_handler_that_panics_is_dropped_and_its_participant_goes_on() {
     ) {
         return;
     }
-    let (here, there) = (
-        Host::process().unwrap(),
-        Host::composed(Arc::new(AtomicBool::new(false))).unwrap(),
-    );
-    let (mut listener, mut talker) = (node(&here, "listener"), node(&there, "talker"));
-    let talk = talker
-        .publisher::<biped_msgs::msg::StringMsg>("chatter")
-        .unwrap();
-    let record: Record = Arc::default();
-    let into = Arc::clone(&record);
-    let handle = listener
-        .subscription::<biped_msgs::msg::StringMsg>("chatter")
-        .unwrap()
-        .on_receive(move |received| {
-            let (m, _) = received.unwrap();
-            assert!(m.data != "boom", "the handler's panic");
-            into.lock()
-                .unwrap()
-                .push((m.data, std::thread::current().id()));
-        })
-        .unwrap();
-    until_recorded(|p| talk.publish(text(p)).unwrap(), &record, "probe");
+    let (mut listener, mut talker, talk, record, handle) = listening("boom");
     talk.publish(text("boom")).unwrap();
     let deadline = Instant::now() + Duration::from_secs(30);
     while !handle.failed() {
@@ -139,12 +141,8 @@ fn a_handler_that_panics_is_dropped_and_its_participant_goes_on() {
     );
     // The participant's DDS thread survived the panic: another subscription of the node
     // still gets the talker's messages.
-    let other = listener
-        .subscription::<biped_msgs::msg::StringMsg>("other")
-        .unwrap();
-    let talk_other = talker
-        .publisher::<biped_msgs::msg::StringMsg>("other")
-        .unwrap();
+    let other = listener.subscription::<StringMsg>("other").unwrap();
+    let talk_other = talker.publisher::<StringMsg>("other").unwrap();
     until_heard(|m| talk_other.publish(m).unwrap(), &other, "still here");
 }
 
@@ -159,7 +157,7 @@ fn a_composed_node_s_subscription_is_not_handled_on_a_dds_thread() {
     let host = Host::composed(Arc::new(AtomicBool::new(false))).unwrap();
     let mut listener = node(&host, "listener");
     let refused = listener
-        .subscription::<biped_msgs::msg::StringMsg>("chatter")
+        .subscription::<StringMsg>("chatter")
         .unwrap()
         .on_receive(|_| {})
         .unwrap_err()
