@@ -139,7 +139,6 @@ fn assert_markers_draw_the_balance(
     }
 }
 
-/// The planner said on /rosout that the cmd_vel stream stopped and it ended the walk.
 /// A `/joint_commands` message the peer recorded: the leg joints `legs` (name, dof) by name,
 /// in order, each position within `tol` of `want_rad` (the whole robot's joint vector).
 fn assert_leg_command(
@@ -170,6 +169,7 @@ fn assert_leg_command(
     }
 }
 
+/// The planner said on /rosout that the cmd_vel stream stopped and it ended the walk.
 fn assert_timed_out(v: &Value) {
     assert!(
         rosout_has(
