@@ -990,8 +990,14 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
              relay by inheriting the bench's)"
         ),
     };
+    let on_receive = if opts.solve_on_receive {
+        "; the ik_solver solving on the DDS thread that receives each message \
+         (`--solve-on-receive`: its `solve_on_receive` parameter)"
+    } else {
+        ""
+    };
     let measured = format!(
-        "Measured {} on {}; release build{bound}{latency}{realtime}; ros2-client {}, RustDDS {}{}.",
+        "Measured {} on {}; release build{bound}{latency}{realtime}{on_receive}; ros2-client {}, RustDDS {}{}.",
         common::today(),
         machine(),
         lock_version(root, "ros2-client"),
