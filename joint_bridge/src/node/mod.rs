@@ -526,11 +526,11 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
                     let _ = ticks.next().await;
                     let t = t0.elapsed().as_secs_f64();
-                    while let Some(cmd) = take_command(&sub, &ros) {
+                    while let Some(cmd) = take_next(&sub, &ros, "joint_commands") {
                         report(bridge.command(t, &cmd.name, &cmd.position));
                     }
                     // The newest body rate, timed on arrival (the IMU's clock is not ours).
-                    while let Some(Ok(Some((m, _)))) = imu.as_ref().map(|s| s.take()) {
+                    while let Some(m) = imu.as_ref().and_then(|s| take_next(s, &ros, "imu/data")) {
                         if let Some(w) = body_rate(&m) {
                             bridge.set_body_rate(t, w);
                         }
@@ -556,8 +556,52 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
             // does not hold the clock.
             let mut newest_imu_s = f64::NEG_INFINITY;
             let wait = Duration::from_secs_f64(lockstep_wait_s);
+            // A body rate heard: the gyro damping's (even in a frame it cannot use, said once:
+            // not waited for then).
+            let imu_in =
+                |bridge: &mut JointBridge<Box<dyn Backend>>, newest_imu_s: &mut f64, m: &Imu| {
+                    let t = m.header.stamp.as_secs_f64();
+                    *newest_imu_s = newest_imu_s.max(t);
+                    if let Some(w) = body_rate(m) {
+                        bridge.set_body_rate(t, w);
+                    }
+                };
+            // A command heard at tick `now_s`: taken, or held for its tick.
+            let command_in = |bridge: &mut JointBridge<Box<dyn Backend>>,
+                              early: &mut EarlyCommands,
+                              newest_command_s: &mut f64,
+                              now_s: f64,
+                              cmd: JointState| {
+                let stamp_s = cmd.header.stamp.as_secs_f64();
+                if let Some((stamp_s, cmd)) = early.offer(now_s, stamp_s, cmd) {
+                    *newest_command_s = newest_command_s.max(stamp_s);
+                    report(bridge.command(now_s, &cmd.name, &cmd.position));
+                }
+            };
+            // Every body rate and command waiting in the readers, at tick `now_s`.
+            let take_waiting = |bridge: &mut JointBridge<Box<dyn Backend>>,
+                                early: &mut EarlyCommands,
+                                newest_command_s: &mut f64,
+                                newest_imu_s: &mut f64,
+                                now_s: f64| {
+                while let Some(m) = imu.as_ref().and_then(|s| take_next(s, &ros, "imu/data")) {
+                    imu_in(bridge, newest_imu_s, &m);
+                }
+                while let Some(cmd) = take_next(&sub, &ros, "joint_commands") {
+                    command_in(bridge, early, newest_command_s, now_s, cmd);
+                }
+            };
             while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
+                // A command or body rate wakes this thread only while a tick waits for it:
+                // otherwise (a planner ahead of /clock sends tick t's command before tick t)
+                // it waits in its reader, taken when the tick comes (`take_waiting`), and
+                // only the reader's DDS thread wakes for it.
+                let for_command = pending.is_some();
+                let for_imu = pending.is_some_and(|(p, _)| imu_due(imu.is_some(), newest_imu_s, p));
                 let wake = async {
+                    if !for_command {
+                        return std::future::pending().await;
+                    }
                     Wake::Command(match sub.async_take().await {
                         Ok((m, _)) => Some(m),
                         Err(e) => {
@@ -570,38 +614,35 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 }
                 .or(async {
                     match &imu {
-                        Some(sub) => loop {
+                        Some(sub) if for_imu => loop {
                             match sub.async_take().await {
                                 Ok((m, _)) => break Wake::Imu(m),
                                 Err(e) => ros
                                     .warn(&format!("imu/data: unreadable message dropped: {e:?}")),
                             }
                         },
-                        None => std::future::pending().await,
+                        _ => std::future::pending().await,
                     }
                 })
                 .or(async { Wake::Tick(ticks.next().await) })
                 .await;
                 match wake {
                     Wake::Command(Some(cmd)) => {
-                        let stamp_s = cmd.header.stamp.as_secs_f64();
-                        if let Some((stamp_s, cmd)) = early.offer(clock_s, stamp_s, cmd) {
-                            newest_command_s = newest_command_s.max(stamp_s);
-                            report(bridge.command(clock_s, &cmd.name, &cmd.position));
-                        }
+                        command_in(&mut bridge, &mut early, &mut newest_command_s, clock_s, cmd)
                     }
-                    Wake::Imu(m) => {
-                        let t = m.header.stamp.as_secs_f64();
-                        // Heard, even in a frame it cannot use (said once): not waited for.
-                        newest_imu_s = newest_imu_s.max(t);
-                        if let Some(w) = body_rate(&m) {
-                            bridge.set_body_rate(t, w);
-                        }
-                    }
+                    Wake::Imu(m) => imu_in(&mut bridge, &mut newest_imu_s, &m),
                     Wake::Command(None) | Wake::Tick(None) => {}
                     Wake::Tick(Some(tick)) => {
                         let t = tick.sim_time.map_or(0.0, |s| s.as_secs_f64());
                         if tick.repeat {
+                            // What came meanwhile, as it came (a paused simulator's repeats).
+                            take_waiting(
+                                &mut bridge,
+                                &mut early,
+                                &mut newest_command_s,
+                                &mut newest_imu_s,
+                                clock_s,
+                            );
                             // The simulator says tick t again (waiting, paused or held at
                             // its `~/run_until`): an operator's call is answered now and acts
                             // from the next tick (a held simulator waits for the answer). A
@@ -632,6 +673,15 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                             newest_command_s = newest_command_s.max(stamp_s);
                             report(bridge.command(t, &cmd.name, &cmd.position));
                         }
+                        // Then what came since the last tick, in its readers (after the held
+                        // ones, which came before it).
+                        take_waiting(
+                            &mut bridge,
+                            &mut early,
+                            &mut newest_command_s,
+                            &mut newest_imu_s,
+                            t,
+                        );
                         pending = Some((t, Instant::now()));
                     }
                 }
@@ -730,17 +780,17 @@ impl OperatorServices {
     }
 }
 
-/// The next joint command waiting, if any (unreadable ones are dropped with a warning).
-fn take_command(sub: &node_runtime::Subscription<JointState>, ros: &RosNode) -> Option<JointState> {
+/// The next message waiting on `topic`, if any (unreadable ones are dropped with a warning).
+fn take_next<M: node_runtime::local::RosMessageBound>(
+    sub: &node_runtime::Subscription<M>,
+    ros: &RosNode,
+    topic: &str,
+) -> Option<M> {
     loop {
         match sub.take() {
-            Ok(Some((cmd, _))) => return Some(cmd),
+            Ok(Some((m, _))) => return Some(m),
             Ok(None) => return None,
-            Err(e) => {
-                ros.warn(&format!(
-                    "joint_commands: unreadable message dropped: {e:?}"
-                ));
-            }
+            Err(e) => ros.warn(&format!("{topic}: unreadable message dropped: {e:?}")),
         }
     }
 }
