@@ -17,6 +17,7 @@ use serde_json::Value;
 /// tf_check.py on the bag: its JSON.
 fn walk_and_check(domain_id: u32, name: &str, urdf: &Path, args: &[&str]) -> Value {
     let dir: PathBuf = std::env::temp_dir().join(format!("biped-tf-{name}-{}", std::process::id()));
+    // (`log_of` finds the nodes' logs under it.)
     let _ = std::fs::remove_dir_all(&dir);
     let bag = dir.join("bag");
     let mut walk_args = vec!["--steps", "2", "--bag", bag.to_str().unwrap()];
@@ -124,13 +125,39 @@ fn assert_tf_tree(v: &Value) {
 fn a_walks_bag_holds_every_link_on_tf_as_pinocchio_places_it() {
     let urdf = root().join("config/biped.urdf");
     assert_tf_tree(&walk_and_check(79, "default", &urdf, &[]));
+    let log = std::fs::read_to_string(log_of("default", "robot_state_publisher")).unwrap();
+    assert!(log.contains("ready: robot"), "{log}");
+    assert!(!log.contains("on the DDS thread"), "{log}");
+}
+
+/// The log of `node` in [`walk_and_check`]'s walk `name`.
+fn log_of(name: &str, node: &str) -> PathBuf {
+    std::env::temp_dir()
+        .join(format!("biped-tf-{name}-{}", std::process::id()))
+        .join(format!("out/logs/{node}.log"))
 }
 
 /// A robot we did not tune for: six joints per leg with hip yaw, renamed joints and
-/// links, flipped axes.
+/// links, flipped axes; and robot_state_publisher with `publish_on_receive` (each joint
+/// state's frames published by the DDS thread that received it), which must change nothing
+/// of what is published.
 #[test]
-fn the_six_joint_robots_tf_tree_agrees_with_pinocchio_too() {
+fn the_six_joint_robots_tf_tree_agrees_with_pinocchio_too_published_on_receive() {
     let urdf = root().join("tests/data/biped6_renamed.urdf");
     let robot = urdf.to_str().unwrap();
-    assert_tf_tree(&walk_and_check(80, "biped6", &urdf, &["--robot", robot]));
+    let dir = std::env::temp_dir().join(format!("biped-tf-params-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let params = dir.join("on_receive.yaml");
+    std::fs::write(
+        &params,
+        "robot_state_publisher:\n  ros__parameters:\n    publish_on_receive: true\n",
+    )
+    .unwrap();
+    let args = ["--robot", robot, "--params", params.to_str().unwrap()];
+    assert_tf_tree(&walk_and_check(80, "biped6", &urdf, &args));
+    let log = std::fs::read_to_string(log_of("biped6", "robot_state_publisher")).unwrap();
+    assert!(
+        log.contains("frames published on the DDS thread that receives each joint state"),
+        "{log}"
+    );
 }

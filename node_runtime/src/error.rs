@@ -1,6 +1,7 @@
-//! The one error type of the node runtime: why a node could not start.
+//! The one error type of the node runtime: why a node could not start (or, for a handler
+//! on the DDS thread, stopped).
 
-/// Why a node could not start.
+/// Why a node could not start, or why its handler on the DDS thread stopped.
 #[derive(Debug, thiserror::Error)]
 pub enum RosError {
     /// A bad `--ros-args` argument.
@@ -62,5 +63,12 @@ pub enum RosError {
         what: String,
         /// The library's message.
         message: String,
+    },
+    /// A handler run on the DDS thread ([`crate::RosNode::serve_on_receive`]) panicked: the
+    /// node handles no more messages of the topic.
+    #[error("{topic}: the handler panicked on the DDS thread; no more of its messages are handled")]
+    HandlerPanicked {
+        /// The topic.
+        topic: String,
     },
 }

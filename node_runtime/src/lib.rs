@@ -57,7 +57,7 @@ pub use log::Log;
 pub use node::{
     Host, LAUNCH_PARENT_ENV, NodeSetup, RosNode, create_node, node_main, shutdown_flag,
 };
-pub use on_receive::{OnReceive, Received};
+pub use on_receive::{OnReceive, Received, Said};
 pub use params::{
     COMMON_PARAMS, ParameterCheck, check_known, from_parameter_value, node_parameters,
     read_at_startup, read_at_startup_only, to_parameter_value,

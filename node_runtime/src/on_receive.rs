@@ -149,3 +149,70 @@ impl<M: RosMessageBound> Drop for OnReceive<M> {
             .unwrap_or_else(PoisonError::into_inner) = None;
     }
 }
+
+/// What a handler run on the DDS thread ([`crate::RosNode::serve_on_receive`]) has the
+/// node's thread log: the DDS thread does not write the log itself (`/rosout` is the node's,
+/// and a handler must not wait).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Said {
+    /// A warning.
+    Warn(String),
+    /// An error, logged at most once a second per `key` ([`crate::RosNode::error_throttled`]).
+    Error {
+        /// What kind of error, for the throttle.
+        key: &'static str,
+        /// The error.
+        text: String,
+    },
+}
+
+impl crate::RosNode {
+    /// Logs what a handler said: a warning as it comes, an error throttled by its key.
+    pub fn log_said(&self, said: Said) {
+        match said {
+            Said::Warn(text) => self.warn(&text),
+            Said::Error { key, text } => self.error_throttled(key, &text),
+        }
+    }
+
+    /// Hands each message of `sub` (topic `topic`) to `handler` on the DDS thread that
+    /// receives it ([`crate::Subscription::on_receive`]) until `stop` is set, while this, the
+    /// node's thread, logs what the handler says through its second argument. What is said
+    /// goes through a queue of 64: when the node's thread falls behind, what is said is
+    /// dropped, never a message. An unreadable message is dropped with a warning naming
+    /// `topic`. Ends with an error if the handler panicked (no message is handled after it).
+    pub async fn serve_on_receive<M: RosMessageBound>(
+        &self,
+        sub: crate::Subscription<M>,
+        topic: &str,
+        stop: &AtomicBool,
+        mut handler: impl FnMut(M, &mut dyn FnMut(Said)) + Send + 'static,
+    ) -> Result<(), crate::RosError> {
+        let (tx, rx) = smol::channel::bounded(64);
+        let name = topic.to_owned();
+        let on_receive = sub.on_receive(move |received| {
+            let mut say = |said| {
+                let _ = tx.try_send(said);
+            };
+            match received {
+                Ok((m, _)) => handler(m, &mut say),
+                Err(e) => say(Said::Warn(format!(
+                    "{name}: unreadable message dropped: {e:?}"
+                ))),
+            }
+        })?;
+        // The stop flag is looked at, without anything said, every 100 ms.
+        let mut bound = crate::WaitBound::every(std::time::Duration::from_millis(100));
+        while !stop.load(Ordering::SeqCst) {
+            if on_receive.failed() {
+                return Err(crate::RosError::HandlerPanicked {
+                    topic: topic.to_owned(),
+                });
+            }
+            if let Some(Ok(said)) = bound.within(rx.recv()).await {
+                self.log_said(said);
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,20 +1,22 @@
 //! A subscription handled on the DDS thread that receives its messages
 //! ([`node_runtime::Subscription::on_receive`]): every message, in order, on that thread;
 //! nothing after the handle is dropped; a handler that panics is dropped and the node's
-//! participant goes on; refused for composed nodes. Each test re-runs itself in a private
-//! network namespace with only loopback (root), on its own ROS_DOMAIN_ID (227-229).
+//! participant goes on; refused for composed nodes; a node served that way
+//! ([`node_runtime::RosNode::serve_on_receive`]) ends with an error naming the topic when its
+//! handler panics. Each test re-runs itself in a private network namespace with only
+//! loopback (root), on its own ROS_DOMAIN_ID (227-230).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 mod common;
 
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::ThreadId;
 use std::time::{Duration, Instant};
 
 use biped_msgs::msg::StringMsg;
 use common::{in_private_network, node, text, until_heard};
-use node_runtime::{Host, OnReceive, Publisher, RosNode};
+use node_runtime::{Host, OnReceive, Publisher, RosError, RosNode, Said};
 
 type Record = Arc<Mutex<Vec<(String, ThreadId)>>>;
 
@@ -166,4 +168,68 @@ fn a_composed_node_s_subscription_is_not_handled_on_a_dds_thread() {
         refused.contains("std_msgs/msg/String") && refused.contains("composed"),
         "{refused}"
     );
+}
+
+#[test]
+fn a_node_served_on_receive_ends_with_an_error_naming_the_topic_when_its_handler_panics() {
+    if !in_private_network(
+        "a_node_served_on_receive_ends_with_an_error_naming_the_topic_when_its_handler_panics",
+        230,
+    ) {
+        return;
+    }
+    let (here, there) = (
+        Host::process().unwrap(),
+        Host::composed(Arc::new(AtomicBool::new(false))).unwrap(),
+    );
+    let (mut listener, mut talker) = (node(&here, "listener"), node(&there, "talker"));
+    let talk = talker.publisher::<StringMsg>("chatter").unwrap();
+    let sub = listener.subscription::<StringMsg>("chatter").unwrap();
+    // The talker says "probe" until the handler has had one, then "boom"; the stop flag is
+    // the test's own bound (set after 30 s, it would end the serving without an error).
+    let stop = Arc::new(AtomicBool::new(false));
+    let heard = Arc::new(AtomicBool::new(false));
+    let talking = {
+        let (stop, heard) = (Arc::clone(&stop), Arc::clone(&heard));
+        std::thread::spawn(move || {
+            let deadline = Instant::now() + Duration::from_secs(30);
+            while Instant::now() < deadline && !stop.load(Ordering::SeqCst) {
+                let say = if heard.load(Ordering::SeqCst) {
+                    "boom"
+                } else {
+                    "probe"
+                };
+                talk.publish(text(say)).unwrap();
+                std::thread::sleep(Duration::from_millis(50));
+            }
+            stop.store(true, Ordering::SeqCst);
+        })
+    };
+    let handled = Arc::new(Mutex::new(Vec::<String>::new()));
+    let into = Arc::clone(&handled);
+    let served = smol::block_on(listener.serve_on_receive(
+        sub,
+        "chatter",
+        &stop,
+        move |m: StringMsg, say: &mut dyn FnMut(Said)| {
+            assert!(m.data != "boom", "the handler's panic");
+            say(Said::Warn(format!("handled {}", m.data)));
+            into.lock().unwrap().push(m.data);
+            heard.store(true, Ordering::SeqCst);
+        },
+    ));
+    stop.store(true, Ordering::SeqCst);
+    talking.join().unwrap();
+    match served {
+        Err(RosError::HandlerPanicked { topic }) => assert_eq!(topic, "chatter"),
+        other => panic!("served until the stop flag, not ended by the panic: {other:?}"),
+    }
+    assert_eq!(
+        Arc::strong_count(&handled),
+        1,
+        "the handler was kept after it panicked"
+    );
+    let handled = handled.lock().unwrap();
+    assert!(handled.iter().any(|m| m == "probe"), "{handled:?}");
+    assert!(!handled.iter().any(|m| m == "boom"), "{handled:?}");
 }

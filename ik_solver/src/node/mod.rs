@@ -17,9 +17,10 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use crate::{AnkleTarget, BipedModel};
+use anyhow::Context as _;
 use biped_msgs::msg::{AnkleTargets, JointState};
 use nalgebra::Vector3;
-use node_runtime::{Host, NodeSetup, RosNode};
+use node_runtime::{Host, NodeSetup, RosNode, Said};
 use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
@@ -56,13 +57,6 @@ fn solve(
     Ok((js, issues.iter().map(|i| i.to_string()).collect()))
 }
 
-/// What handling a message has to say, for the node's thread to log.
-#[derive(Debug)]
-enum Report {
-    Warn(String),
-    PublishFailed(String),
-}
-
 /// The node's work on each message, wherever it runs (the node's thread, or the DDS
 /// thread with `solve_on_receive`).
 struct Solver {
@@ -75,9 +69,9 @@ struct Solver {
 }
 
 impl Solver {
-    /// Solves `msg` and publishes its command; `report` gets what is to be logged (a
+    /// Solves `msg` and publishes its command; `say` gets what is to be logged (a
     /// joint-limit or reach issue at most once a second per kind, not once per tick).
-    fn handle(&mut self, msg: &AnkleTargets, report: &mut impl FnMut(Report)) {
+    fn handle(&mut self, msg: &AnkleTargets, say: &mut dyn FnMut(Said)) {
         match solve(&self.model, &self.names, &self.dofs, msg, &mut self.q) {
             Ok((js, issues)) => {
                 for issue in issues {
@@ -87,25 +81,19 @@ impl Solver {
                         .get(&key)
                         .is_none_or(|t| t.elapsed() > Duration::from_secs(1));
                     if due {
-                        report(Report::Warn(issue));
+                        say(Said::Warn(issue));
                         self.last_report.insert(key, Instant::now());
                     }
                 }
                 if let Err(e) = self.publisher.publish(js) {
-                    report(Report::PublishFailed(format!(
-                        "publish joint_commands: {e}"
-                    )));
+                    say(Said::Error {
+                        key: "publish joint_commands",
+                        text: format!("publish joint_commands: {e}"),
+                    });
                 }
             }
-            Err(why) => report(Report::Warn(why)),
+            Err(why) => say(Said::Warn(why)),
         }
-    }
-}
-
-fn log(ros: &RosNode, report: Report) {
-    match report {
-        Report::Warn(w) => ros.warn(&w),
-        Report::PublishFailed(e) => ros.error_throttled("publish joint_commands", &e),
     }
 }
 
@@ -176,39 +164,22 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
 
     let result = executor
         .run(async {
+            if solve_on_receive && !composed {
+                // The DDS thread solves and publishes; this thread logs what it says.
+                return ros
+                    .serve_on_receive(sub, TARGETS_TOPIC, &stop, move |msg, say| {
+                        solver.handle(&msg, say)
+                    })
+                    .await
+                    .context("the solver: no more joint commands");
+            }
             // The stop flag is looked at, without a message, every 100 ms.
             let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
-            if solve_on_receive && !composed {
-                // The DDS thread solves and publishes; this thread logs what it reports.
-                let (tx, rx) = smol::channel::bounded(64);
-                let on_receive = sub.on_receive(move |received| match received {
-                    Ok((msg, _)) => solver.handle(&msg, &mut |r| {
-                        // A full queue drops the report, never the command.
-                        let _ = tx.try_send(r);
-                    }),
-                    Err(e) => {
-                        let _ = tx.try_send(Report::Warn(format!(
-                            "{TARGETS_TOPIC}: unreadable message dropped: {e:?}"
-                        )));
-                    }
-                })?;
-                while !stop.load(Ordering::SeqCst) {
-                    if on_receive.failed() {
-                        anyhow::bail!(
-                            "the solver panicked on the DDS thread: no more joint commands"
-                        );
-                    }
-                    if let Some(Ok(report)) = bound.within(rx.recv()).await {
-                        log(&ros, report);
-                    }
-                }
-                return Ok(());
-            }
             while !stop.load(Ordering::SeqCst) {
                 let Some(msg) = ros.take_within(&sub, TARGETS_TOPIC, &mut bound).await else {
                     continue;
                 };
-                solver.handle(&msg, &mut |r| log(&ros, r));
+                solver.handle(&msg, &mut |said| ros.log_said(said));
             }
             Ok(())
         })

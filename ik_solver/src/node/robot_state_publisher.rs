@@ -12,7 +12,10 @@
 //!   second); a state whose names and positions differ in length is refused with a warning.
 //!
 //! Parameters: `robot_description_file` (URDF path; empty for the built-in robot),
-//! `frame_prefix` (put before every link name in the frames, e.g. `robot1/`; default empty).
+//! `frame_prefix` (put before every link name in the frames, e.g. `robot1/`; default empty),
+//! `publish_on_receive` (bool, default false: each joint state's frames are computed and
+//! published on the DDS thread that received it, one thread wake-up a message instead of
+//! two). All read at start.
 
 use std::process::ExitCode;
 use std::sync::atomic::Ordering;
@@ -21,11 +24,13 @@ use std::time::Duration;
 use anyhow::Context as _;
 use biped_msgs::msg::{Header, JointState, StringMsg, TFMessage, Time, TransformStamped};
 use ik_solver::{FrameTransform, FrameTree, RobotModel};
-use node_runtime::{Host, NodeSetup, RosNode};
+use node_runtime::{Host, NodeSetup, RosNode, Said};
 use ros2_client::ParameterValue;
 
 const ROBOT_PARAM: &str = "robot_description_file";
 const PREFIX_PARAM: &str = "frame_prefix";
+const ON_RECEIVE_PARAM: &str = "publish_on_receive";
+const STATES_TOPIC: &str = "joint_states";
 
 fn main() -> ExitCode {
     node_runtime::node_main("robot_state_publisher", run)
@@ -48,11 +53,57 @@ fn tf_message(frames: &[FrameTransform<'_>], stamp: Time, prefix: &str) -> TFMes
     }
 }
 
+/// The node's work on each joint state, wherever it runs (the node's thread, or the DDS
+/// thread with `publish_on_receive`).
+struct Frames {
+    tree: FrameTree,
+    prefix: String,
+    publisher: node_runtime::Publisher<TFMessage>,
+}
+
+impl Frames {
+    /// Publishes the frames of the movable joints `state` names on `/tf`; `say` gets what
+    /// is to be logged.
+    fn handle(&self, state: &JointState, say: &mut dyn FnMut(Said)) {
+        match self.tree.moving(&state.name, &state.position) {
+            Ok((frames, skipped)) => {
+                if !skipped.non_finite.is_empty() {
+                    say(Said::Error {
+                        key: "non-finite",
+                        text: format!(
+                            "joint_states: non-finite positions {:?}: those frames are not sent",
+                            skipped.non_finite
+                        ),
+                    });
+                }
+                if frames.is_empty() {
+                    return;
+                }
+                let msg = tf_message(&frames, state.header.stamp, &self.prefix);
+                if let Err(e) = self.publisher.publish(msg) {
+                    say(Said::Error {
+                        key: "publish /tf",
+                        text: format!("publish /tf: {e:?}"),
+                    });
+                }
+            }
+            Err(e) => say(Said::Error {
+                key: "joint_states",
+                text: format!("joint_states: {e}"),
+            }),
+        }
+    }
+}
+
 async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     setup.only_ros_args()?;
-    node_runtime::check_known(&setup.params, &[ROBOT_PARAM, PREFIX_PARAM])?;
+    node_runtime::check_known(
+        &setup.params,
+        &[ROBOT_PARAM, PREFIX_PARAM, ON_RECEIVE_PARAM],
+    )?;
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
     let prefix = setup.str_param(PREFIX_PARAM, "")?;
+    let on_receive = setup.bool_param(ON_RECEIVE_PARAM, false)? && !host.is_composed();
     let urdf = if robot_file.is_empty() {
         ik_solver::DEFAULT_URDF.to_owned()
     } else {
@@ -67,6 +118,7 @@ async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let declared = [
         (ROBOT_PARAM, ParameterValue::String(robot_file.clone())),
         (PREFIX_PARAM, ParameterValue::String(prefix.clone())),
+        (ON_RECEIVE_PARAM, ParameterValue::Boolean(on_receive)),
     ]
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
@@ -81,7 +133,7 @@ async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let description_pub = ros.latched_publisher::<StringMsg>("robot_description")?;
     let static_pub = ros.latched_publisher::<TFMessage>("/tf_static")?;
     let tf_pub = ros.publisher::<TFMessage>("/tf")?;
-    let sub = ros.subscription::<JointState>("joint_states")?;
+    let sub = ros.subscription::<JointState>(STATES_TOPIC)?;
     let executor = ros.executor()?;
 
     description_pub
@@ -92,47 +144,42 @@ async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         .publish(tf_message(&fixed, ros.node.time_now().into(), &prefix))
         .map_err(|e| anyhow::anyhow!("publish /tf_static: {e:?}"))?;
     ros.info(&format!(
-        "ready: robot {}, {} links, {} fixed and {} movable joints",
+        "ready: robot {}, {} links, {} fixed and {} movable joints{}",
         tree.model().name(),
         tree.model().links().len(),
         fixed.len(),
-        tree.model().dof_count()
-    ));
-
-    executor.run(async {
-        // The stop flag is looked at, without a message, every 100 ms.
-        let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
-        while !stop.load(Ordering::SeqCst) {
-            let Some(state) = ros
-                .take_within(&sub, "joint_states", &mut bound)
-                .await
-            else {
-                continue;
-            };
-            match tree.moving(&state.name, &state.position) {
-                Ok((frames, skipped)) => {
-                    if !skipped.non_finite.is_empty() {
-                        ros.error_throttled(
-                            "non-finite",
-                            &format!(
-                                "joint_states: non-finite positions {:?}: those frames are not sent",
-                                skipped.non_finite
-                            ),
-                        );
-                    }
-                    if frames.is_empty() {
-                        continue;
-                    }
-                    let msg = tf_message(&frames, state.header.stamp, &prefix);
-                    if let Err(e) = tf_pub.publish(msg) {
-                        ros.error_throttled("publish /tf", &format!("publish /tf: {e:?}"));
-                    }
-                }
-                Err(e) => ros.error_throttled("joint_states", &format!("joint_states: {e}")),
-            }
+        tree.model().dof_count(),
+        if on_receive {
+            ", frames published on the DDS thread that receives each joint state"
+        } else {
+            ""
         }
-    })
-    .await;
+    ));
+    let frames = Frames {
+        tree,
+        prefix,
+        publisher: tf_pub,
+    };
+
+    let result = executor
+        .run(async {
+            if on_receive {
+                return ros
+                    .serve_on_receive(sub, STATES_TOPIC, &stop, move |state, say| {
+                        frames.handle(&state, say)
+                    })
+                    .await;
+            }
+            // The stop flag is looked at, without a message, every 100 ms.
+            let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
+            while !stop.load(Ordering::SeqCst) {
+                if let Some(state) = ros.take_within(&sub, STATES_TOPIC, &mut bound).await {
+                    frames.handle(&state, &mut |said| ros.log_said(said));
+                }
+            }
+            Ok(())
+        })
+        .await;
     ros.info("shutting down");
-    Ok(())
+    Ok(result?)
 }

@@ -44,7 +44,9 @@
 //! gets the answer to every tick computed from that tick's command. A command stamped for a
 //! tick still to come (a gait planner with `plan_ahead`, or one quicker than `/clock`) is
 //! held until that tick (up to 1 s ahead, 64 commands; stamped further ahead, as by a peer
-//! on another clock, it is taken at once).
+//! on another clock, it is taken at once). The node's thread wakes for a command (or a body
+//! rate) only while a tick waits for it; what comes between ticks waits in its reader (keep
+//! last 10) and is taken, in the order it came, when the next `/clock` comes.
 
 mod lifecycle;
 mod serial_setup;
