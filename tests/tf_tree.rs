@@ -16,8 +16,7 @@ use serde_json::Value;
 /// `biped walk --steps 2 --bag` (extra args before) in a private network namespace, then
 /// tf_check.py on the bag: its JSON.
 fn walk_and_check(domain_id: u32, name: &str, urdf: &Path, args: &[&str]) -> Value {
-    let dir: PathBuf = std::env::temp_dir().join(format!("biped-tf-{name}-{}", std::process::id()));
-    // (`log_of` finds the nodes' logs under it.)
+    let dir = walk_dir(name);
     let _ = std::fs::remove_dir_all(&dir);
     let bag = dir.join("bag");
     let mut walk_args = vec!["--steps", "2", "--bag", bag.to_str().unwrap()];
@@ -130,11 +129,14 @@ fn a_walks_bag_holds_every_link_on_tf_as_pinocchio_places_it() {
     assert!(!log.contains("on the DDS thread"), "{log}");
 }
 
+/// Where [`walk_and_check`]'s walk `name` writes.
+fn walk_dir(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("biped-tf-{name}-{}", std::process::id()))
+}
+
 /// The log of `node` in [`walk_and_check`]'s walk `name`.
 fn log_of(name: &str, node: &str) -> PathBuf {
-    std::env::temp_dir()
-        .join(format!("biped-tf-{name}-{}", std::process::id()))
-        .join(format!("out/logs/{node}.log"))
+    walk_dir(name).join(format!("out/logs/{node}.log"))
 }
 
 /// A robot we did not tune for: six joints per leg with hip yaw, renamed joints and

@@ -610,6 +610,18 @@ impl RosNode {
         }
     }
 
+    /// The next message of `sub` (topic `topic`) already waiting, if any; an unreadable one is
+    /// logged, naming the topic, and skipped.
+    pub fn take_next<M: RosMessageBound>(&self, sub: &Subscription<M>, topic: &str) -> Option<M> {
+        loop {
+            match sub.take() {
+                Ok(Some((m, _))) => return Some(m),
+                Ok(None) => return None,
+                Err(e) => self.warn(&format!("{topic}: unreadable message dropped: {e:?}")),
+            }
+        }
+    }
+
     /// An executor running the node's spinner (discovery, parameter services, `/clock`).
     pub fn executor(&mut self) -> Result<smol::LocalExecutor<'static>, RosError> {
         let spinner = self.node.spinner().map_err(|e| RosError::Dds {

@@ -175,6 +175,30 @@ impl crate::RosNode {
         }
     }
 
+    /// Hands each message of `sub` (topic `topic`) to `handler` until `stop` is set: on the DDS
+    /// thread that receives it when `on_receive` ([`Self::serve_on_receive`]), else on this,
+    /// the node's thread, which logs what the handler says either way.
+    pub async fn serve<M: RosMessageBound>(
+        &self,
+        sub: crate::Subscription<M>,
+        topic: &str,
+        stop: &AtomicBool,
+        on_receive: bool,
+        mut handler: impl FnMut(M, &mut dyn FnMut(Said)) + Send + 'static,
+    ) -> Result<(), crate::RosError> {
+        if on_receive {
+            return self.serve_on_receive(sub, topic, stop, handler).await;
+        }
+        // The stop flag is looked at, without a message, every 100 ms.
+        let mut bound = crate::WaitBound::every(std::time::Duration::from_millis(100));
+        while !stop.load(Ordering::SeqCst) {
+            if let Some(m) = self.take_within(&sub, topic, &mut bound).await {
+                handler(m, &mut |said| self.log_said(said));
+            }
+        }
+        Ok(())
+    }
+
     /// Hands each message of `sub` (topic `topic`) to `handler` on the DDS thread that
     /// receives it ([`crate::Subscription::on_receive`]) until `stop` is set, while this, the
     /// node's thread, logs what the handler says through its second argument. What is said

@@ -13,7 +13,6 @@
 //! instead of two; no effect composed with other nodes in one process). All read at start.
 
 use std::collections::BTreeMap;
-use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use crate::{AnkleTarget, BipedModel};
@@ -162,28 +161,18 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         last_report: BTreeMap::new(),
     };
 
+    // With `solve_on_receive` the DDS thread solves and publishes, and this thread logs
+    // what it says.
     let result = executor
-        .run(async {
-            if solve_on_receive && !composed {
-                // The DDS thread solves and publishes; this thread logs what it says.
-                return ros
-                    .serve_on_receive(sub, TARGETS_TOPIC, &stop, move |msg, say| {
-                        solver.handle(&msg, say)
-                    })
-                    .await
-                    .context("the solver: no more joint commands");
-            }
-            // The stop flag is looked at, without a message, every 100 ms.
-            let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
-            while !stop.load(Ordering::SeqCst) {
-                let Some(msg) = ros.take_within(&sub, TARGETS_TOPIC, &mut bound).await else {
-                    continue;
-                };
-                solver.handle(&msg, &mut |said| ros.log_said(said));
-            }
-            Ok(())
-        })
-        .await;
+        .run(ros.serve(
+            sub,
+            TARGETS_TOPIC,
+            &stop,
+            solve_on_receive && !composed,
+            move |msg, say| solver.handle(&msg, say),
+        ))
+        .await
+        .context("the solver: no more joint commands");
     ros.info("shutting down");
     result
 }

@@ -18,8 +18,6 @@
 //! two). All read at start.
 
 use std::process::ExitCode;
-use std::sync::atomic::Ordering;
-use std::time::Duration;
 
 use anyhow::Context as _;
 use biped_msgs::msg::{Header, JointState, StringMsg, TFMessage, Time, TransformStamped};
@@ -162,23 +160,11 @@ async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     };
 
     let result = executor
-        .run(async {
-            if on_receive {
-                return ros
-                    .serve_on_receive(sub, STATES_TOPIC, &stop, move |state, say| {
-                        frames.handle(&state, say)
-                    })
-                    .await;
-            }
-            // The stop flag is looked at, without a message, every 100 ms.
-            let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
-            while !stop.load(Ordering::SeqCst) {
-                if let Some(state) = ros.take_within(&sub, STATES_TOPIC, &mut bound).await {
-                    frames.handle(&state, &mut |said| ros.log_said(said));
-                }
-            }
-            Ok(())
-        })
+        .run(
+            ros.serve(sub, STATES_TOPIC, &stop, on_receive, move |state, say| {
+                frames.handle(&state, say)
+            }),
+        )
         .await;
     ros.info("shutting down");
     Ok(result?)

@@ -528,11 +528,11 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
                     let _ = ticks.next().await;
                     let t = t0.elapsed().as_secs_f64();
-                    while let Some(cmd) = take_next(&sub, &ros, "joint_commands") {
+                    while let Some(cmd) = ros.take_next(&sub, "joint_commands") {
                         report(bridge.command(t, &cmd.name, &cmd.position));
                     }
                     // The newest body rate, timed on arrival (the IMU's clock is not ours).
-                    while let Some(m) = imu.as_ref().and_then(|s| take_next(s, &ros, "imu/data")) {
+                    while let Some(m) = imu.as_ref().and_then(|s| ros.take_next(s, "imu/data")) {
                         if let Some(w) = body_rate(&m) {
                             bridge.set_body_rate(t, w);
                         }
@@ -586,10 +586,10 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                                 newest_command_s: &mut f64,
                                 newest_imu_s: &mut f64,
                                 now_s: f64| {
-                while let Some(m) = imu.as_ref().and_then(|s| take_next(s, &ros, "imu/data")) {
+                while let Some(m) = imu.as_ref().and_then(|s| ros.take_next(s, "imu/data")) {
                     imu_in(bridge, newest_imu_s, &m);
                 }
-                while let Some(cmd) = take_next(&sub, &ros, "joint_commands") {
+                while let Some(cmd) = ros.take_next(&sub, "joint_commands") {
                     command_in(bridge, early, newest_command_s, now_s, cmd);
                 }
             };
@@ -778,21 +778,6 @@ impl OperatorServices {
             };
             said_hold(bridge);
             let _ = self.torque.send_response(id, answer(outcome));
-        }
-    }
-}
-
-/// The next message waiting on `topic`, if any (unreadable ones are dropped with a warning).
-fn take_next<M: node_runtime::local::RosMessageBound>(
-    sub: &node_runtime::Subscription<M>,
-    ros: &RosNode,
-    topic: &str,
-) -> Option<M> {
-    loop {
-        match sub.take() {
-            Ok(Some((m, _))) => return Some(m),
-            Ok(None) => return None,
-            Err(e) => ros.warn(&format!("{topic}: unreadable message dropped: {e:?}")),
         }
     }
 }
