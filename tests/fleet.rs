@@ -281,6 +281,14 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     ));
     assert!(rosout_has(&v, "gait_planner", &["step_length = -1"]));
     assert!(rosout_has(&v, "gait_planner", &["step_duration = inf"]));
+    assert!(
+        rosout_has(
+            &v,
+            "gait_planner",
+            &["walk_command: unreadable message dropped"]
+        ),
+        "no warning for the walk command that could not be read"
+    );
 
     // Parameters: read, refused while walking, set between walks, refused out of bounds.
     assert_eq!(v["param_before"]["double"], 1.0);

@@ -261,6 +261,9 @@ def scenario_walk(bin_dir, params):
     turn.linear.x = 0.01
     turn.angular.z = 0.5
     peer.cmd_vel_pub.publish(turn)
+    # A walk command that cannot be read (a CDR header and two bytes of its first field, sent
+    # as a serialized message): dropped with a warning naming the topic.
+    peer.walk_pub.publish(b"\x00\x01\x00\x00\x03\x00")
     peer.walk(3, step_length=-1.0)
     peer.walk(3, step_duration=math.inf)
     out["set_during_walk"] = peer.set_double("gait_planner", "step_duration_s", 0.8)

@@ -700,14 +700,14 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     }
                 }
                 if let Some(why) = guard.as_ref().and_then(StandGuard::refusal) {
-                    while let Ok(Some(_)) = walk_cmd.take() {
+                    while ros.take_next(&walk_cmd, "walk_command").is_some() {
                         ros.warn(&format!("walk_command refused: {why}"));
                     }
-                    while let Ok(Some(_)) = cmd_vel.take() {
+                    while ros.take_next(&cmd_vel, "cmd_vel").is_some() {
                         ros.warn_throttled("cmd_vel refused", &format!("cmd_vel refused: {why}"));
                     }
                 }
-                while let Ok(Some((msg, _))) = walk_cmd.take() {
+                while let Some(msg) = ros.take_next(&walk_cmd, "walk_command") {
                     // A stamped command sent again (a sender making sure it arrives) is the same
                     // command: take it once.
                     let repeat = msg.start_time.to_nanos() != 0 && last_stamped.as_ref() == Some(&msg);
@@ -775,7 +775,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                         searching = spawn_timing_search(&ros, planner.model(), p, msg);
                     }
                 }
-                while let Ok(Some((h, _))) = bridge_holding.take() {
+                while let Some(h) = ros.take_next(&bridge_holding, "joint_bridge/holding") {
                     if h.data != bridge_holds {
                         bridge_holds = h.data;
                         // A pause the operator asked for stays until the operator resumes.
@@ -802,7 +802,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 // Frozen while the bridge holds and the walk is not pausing (an operator resumed
                 // it meanwhile): the bridge ignores the commands, so the plan must not move on.
                 let t_s = clock.plan_ticks(k, bridge_holds && !clock.pausing()) / rate;
-                while let Ok(Some((msg, _))) = cmd_vel.take() {
+                while let Some(msg) = ros.take_next(&cmd_vel, "cmd_vel") {
                     for w in commands.cmd_vel(&mut planner, &msg, t_s) {
                         ros.warn(&w);
                     }
@@ -825,7 +825,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     ));
                     last_phase = Some((sample.phase, sample.step_index));
                 }
-                while let Ok(Some((js, _))) = joint_states.take() {
+                while let Some(js) = ros.take_next(&joint_states, "joint_states") {
                     if let Some(w) = odom.joint_states(&model, &js) {
                         ros.warn(&w);
                     }

@@ -515,13 +515,13 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                 paused = req.data;
                 ros.answer_said(&pause_srv, "~/pause", id, said);
             }
-            while let Some(Ok(Some((c, _)))) = run_until.as_ref().map(|s| s.take()) {
+            while let Some(c) = run_until.as_ref().and_then(|s| ros.take_next(s, "~/run_until")) {
                 run_until_ns = c.clock.to_nanos();
             }
             let held = t_ns >= run_until_ns;
             // Commands: the newest targets win; names the robot lacks are reported once.
             let mut batch: Vec<JointState> = inbox.take().into_iter().collect();
-            while let Ok(Some((cmd, _))) = commands.take() {
+            while let Some(cmd) = ros.take_next(&commands, "sim/joint_commands") {
                 batch.push(cmd);
             }
             for cmd in batch {
