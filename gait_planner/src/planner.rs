@@ -188,6 +188,11 @@ pub struct GaitPlanner {
     /// Parameters with durations at 0 (auto) as given, and the timing search's answer for
     /// them: [`Self::set_params`] with the same parameters does not search again.
     auto_timing: Option<(GaitParams, GaitParams, FastestTiming)>,
+    /// Parameters as given and the configuration their check walks settled: the checks
+    /// depend on the parameters and the model only, so [`Self::set_params`] with the same
+    /// parameters (every walk command between walks, in the node) takes this instead of
+    /// walking them again, a stall of the control loop of tens of milliseconds.
+    checked: Option<(GaitParams, GaitConfig)>,
 }
 
 /// Results of placing the pelvis for given feet.
@@ -218,6 +223,7 @@ impl GaitPlanner {
         let cfg = filled.resolve(&model)?;
         let mut planner = Self::unchecked(model, cfg);
         planner.check_limits(&params)?;
+        planner.checked = Some((params.clone(), planner.cfg.clone()));
         planner.auto_timing = found.map(|f| (params, filled, f));
         Ok(planner)
     }
@@ -254,11 +260,15 @@ impl GaitPlanner {
             && !matches!(&self.auto_timing, Some((given, _, _)) if given == params)
     }
 
-    /// Takes the timing search `other` made (a planner checked for the same parameters,
-    /// e.g. on another thread) so that [`Self::set_params`] with them does not search again.
+    /// Takes the timing search and the checks `other` made (a planner of the same robot
+    /// checked for some parameters, e.g. on another thread) so that [`Self::set_params`]
+    /// with those parameters neither searches nor checks again.
     pub fn remember_auto_timing(&mut self, other: &GaitPlanner) {
         if other.auto_timing.is_some() {
             self.auto_timing = other.auto_timing.clone();
+        }
+        if other.checked.is_some() {
+            self.checked = other.checked.clone();
         }
     }
 
@@ -595,6 +605,7 @@ impl GaitPlanner {
             poses: Vec::new(),
             brakes: Default::default(),
             auto_timing: None,
+            checked: None,
         }
     }
 
@@ -609,20 +620,56 @@ impl GaitPlanner {
         convex_overlap(&sole(Side::Left), &sole(Side::Right))
     }
 
-    /// Changes the parameters between walks, after the same check as [`Self::new`]. Refused
-    /// during a walk, and for the hip height (while crouched) and the control rate, which
-    /// would make the pose or the tick times jump.
+    /// Changes the parameters between walks, after the same check as [`Self::new`] (not
+    /// walked again for the parameters last checked, here or by the planner given to
+    /// [`Self::remember_auto_timing`]), and starts the next walk from the configured first
+    /// foot and forward stride. Refused during a walk, and for the hip height (while
+    /// crouched) and the control rate, which would make the pose or the tick times jump.
     pub fn set_params(&mut self, params: GaitParams) -> Result<(), GaitError> {
         if self.phase.kind != PhaseKind::Idle || self.pending.is_some() {
             return Err(GaitError::Request(
                 "parameters can change only between walks (the planner is walking)".into(),
             ));
         }
-        let (filled, found) = match &self.auto_timing {
-            Some((given, filled, f)) if *given == params => (filled.clone(), Some(f.clone())),
-            _ => params.with_auto_timing(&self.model)?,
+        let checked = match &self.checked {
+            Some((given, cfg)) if *given == params => Some(cfg.clone()),
+            _ => None,
         };
-        let cfg = filled.resolve(&self.model)?;
+        let (cfg, auto_timing) = match checked {
+            // Checked already: the same configuration, and the timing search kept with it.
+            Some(cfg) => {
+                self.check_rate_and_height(&cfg)?;
+                let kept = self
+                    .auto_timing
+                    .take()
+                    .filter(|(given, _, _)| *given == params);
+                (cfg, kept)
+            }
+            None => {
+                let (filled, found) = match &self.auto_timing {
+                    Some((given, filled, f)) if *given == params => {
+                        (filled.clone(), Some(f.clone()))
+                    }
+                    _ => params.with_auto_timing(&self.model)?,
+                };
+                let cfg = filled.resolve(&self.model)?;
+                self.check_rate_and_height(&cfg)?;
+                let mut fresh = Self::unchecked(self.model.clone(), cfg);
+                fresh.check_limits(&params)?;
+                (fresh.cfg, found.map(|f| (params.clone(), filled, f)))
+            }
+        };
+        self.auto_timing = auto_timing;
+        self.checked = Some((params, cfg.clone()));
+        self.next_swing = cfg.first_foot;
+        self.stride = Stride::forward(cfg.step_length_m);
+        self.cfg = cfg;
+        Ok(())
+    }
+
+    /// What [`Self::set_params`] refuses whatever the check walks say: another control rate,
+    /// or another hip height while crouched.
+    fn check_rate_and_height(&self, cfg: &GaitConfig) -> Result<(), GaitError> {
         if cfg.control_rate_hz != self.cfg.control_rate_hz {
             return Err(GaitError::Param {
                 key: "control_rate_hz",
@@ -643,12 +690,6 @@ impl GaitPlanner {
                 ),
             });
         }
-        let mut fresh = Self::unchecked(self.model.clone(), cfg);
-        fresh.check_limits(&params)?;
-        self.auto_timing = found.map(|f| (params, filled, f));
-        self.next_swing = fresh.cfg.first_foot;
-        self.stride = fresh.stride;
-        self.cfg = fresh.cfg;
         Ok(())
     }
 

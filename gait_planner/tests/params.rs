@@ -269,3 +269,64 @@ fn bounds_are_checked_without_the_timing_search() {
         .to_string();
     assert!(e.contains("rad/s"), "{e}");
 }
+
+/// How far the base went over a walk (x, y, m).
+fn travel(samples: &[gait_planner::GaitSample]) -> [f64; 2] {
+    let (a, b) = (
+        samples[0].base_world.translation.vector,
+        samples[samples.len() - 1].base_world.translation.vector,
+    );
+    [b.x - a.x, b.y - a.y]
+}
+
+/// Between walks the node gives the planner its parameters at every walk command, mostly
+/// the ones it holds: taken as checked (the checks depend on the parameters and the robot
+/// only), they give the configuration they gave before and put the stride back to straight
+/// ahead, as a new planner has it; parameters checked by another planner (the node's
+/// parameter and timing-search threads) come with that planner's configuration; others are
+/// checked, and refused naming the value, the planner keeping what it had.
+#[test]
+fn parameters_given_again_give_what_their_check_gave() {
+    let model = default_model();
+    let params = slow();
+    let mut planner = planner(params.clone());
+    let checked = planner.config().clone();
+    let side = gait_planner::Stride {
+        forward_m: 0.0,
+        left_m: checked.side_step_m,
+        turn_rad: 0.0,
+    };
+    planner.set_stride(side).unwrap();
+    let sideways = travel(&planner.plan(gait_planner::WalkRequest::Steps(2)).unwrap());
+    assert!(sideways[1] > 0.5 * checked.side_step_m, "{sideways:?}");
+
+    planner.set_params(params.clone()).unwrap();
+    assert_eq!(planner.config(), &checked);
+    let ahead = travel(&planner.plan(gait_planner::WalkRequest::Steps(2)).unwrap());
+    assert!(ahead[0] > 0.5 * checked.step_length_m, "{ahead:?}");
+    assert!(ahead[1].abs() < 1e-3, "{ahead:?}");
+
+    // Checked on another planner (a step 1.5 cm shorter), then given: its configuration.
+    let shorter = GaitParams {
+        step_length_m: checked.step_length_m - 0.015,
+        ..params.clone()
+    };
+    let other = gait_planner::GaitPlanner::new(model, shorter.clone()).unwrap();
+    planner.remember_auto_timing(&other);
+    planner.set_params(shorter).unwrap();
+    assert_eq!(planner.config(), other.config());
+    assert_ne!(planner.config(), &checked);
+    // And the first ones again: checked again, the same as at first.
+    planner.set_params(params.clone()).unwrap();
+    assert_eq!(planner.config(), &checked);
+
+    // Parameters not checked yet are: a step too long is refused, naming it, and the
+    // planner keeps what it had.
+    let long = GaitParams {
+        step_length_m: 0.5,
+        ..params
+    };
+    let e = planner.set_params(long).unwrap_err().to_string();
+    assert!(e.contains("step_length_m") && e.contains("0.5"), "{e}");
+    assert_eq!(planner.config(), &checked);
+}
