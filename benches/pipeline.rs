@@ -35,6 +35,10 @@
 //! priority P, as a node's `thread_priority` parameter does; the rclpy relay inherits it),
 //! `--solve-on-receive` (the ik_solver with its `solve_on_receive` parameter: each message
 //! solved on the DDS thread that received it, one thread wake-up fewer a message),
+//! `--in-reader` (each command time-stamped on the DDS thread that receives it, in its
+//! reader, instead of after that thread has woken the subscriber's: where a `joint_bridge`
+//! driving hardware finds it, since it takes commands on its own control tick and never
+//! waits for one),
 //! `--dump DIR` (each run's latencies, one CSV per relay and rate, in the order sent).
 //! A benchmark, not a test: it is not part of `cargo test` or `scripts/test`.
 
@@ -115,6 +119,8 @@ struct Opts {
     /// `--solve-on-receive`: the ik_solver solves on the DDS thread that receives each
     /// message (its `solve_on_receive` parameter).
     solve_on_receive: bool,
+    /// `--in-reader`: commands time-stamped on the DDS thread that receives them.
+    in_reader: bool,
 }
 
 impl Opts {
@@ -130,6 +136,7 @@ impl Opts {
             priority: None,
             dump: None,
             solve_on_receive: false,
+            in_reader: false,
         };
         let mut it = args.into_iter();
         while let Some(a) = it.next() {
@@ -140,6 +147,7 @@ impl Opts {
                 "--write" => o.write = true,
                 "--wait-idle" => o.wait_idle = true,
                 "--solve-on-receive" => o.solve_on_receive = true,
+                "--in-reader" => o.in_reader = true,
                 "--n-100hz" => o.n_100hz = value()?.parse().context("--n-100hz")?,
                 "--n-1khz" => o.n_1khz = value()?.parse().context("--n-1khz")?,
                 "--cpu-affinity" => {
@@ -166,7 +174,7 @@ impl Opts {
                     }
                 }
                 other => bail!(
-                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...], --cpu-dma-latency-us US, --thread-priority P, --solve-on-receive, --dump DIR)"
+                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...], --cpu-dma-latency-us US, --thread-priority P, --solve-on-receive, --in-reader, --dump DIR)"
                 ),
             }
         }
@@ -601,30 +609,45 @@ fn session(
     let spin_thread = std::thread::spawn(move || smol::block_on(spinner.spin()));
 
     // The joint bridge's end: time-stamps each arrival as soon as it is taken. It waits as
-    // the fleet's nodes do (node_runtime::wait): parked, one timer for the stop check.
+    // the fleet's nodes do (node_runtime::wait): parked, one timer for the stop check. With
+    // --in-reader, on the DDS thread that receives it instead, and no thread of ours waits.
     let stop = Arc::new(AtomicBool::new(false));
     let (tx, rx) = mpsc::channel::<Arrival>();
-    let receiver = {
+    let arrival = move |msg: JointState, arrived_ns: i64| Arrival {
+        stamp_ns: msg.header.stamp.to_nanos(),
+        arrived_ns,
+        positions: msg.position.len(),
+    };
+    let (receiver, in_reader) = if opts.in_reader {
+        let handler = move |received: node_runtime::Received<JointState>| match received {
+            Ok((msg, _)) => {
+                let arrived_ns = clock.now_ns();
+                let _ = tx.send(arrival(msg, arrived_ns));
+            }
+            Err(e) => eprintln!("joint_commands: unreadable message: {e:?}"),
+        };
+        (
+            None,
+            Some(node_runtime::OnReceive::new(subscription, handler)),
+        )
+    } else {
         let stop = stop.clone();
-        std::thread::spawn(move || {
+        let thread = std::thread::spawn(move || {
             node_runtime::wait::block_on(async {
                 let mut bound = node_runtime::WaitBound::every(Duration::from_millis(100));
                 while !stop.load(Ordering::SeqCst) {
                     match bound.within(subscription.async_take()).await {
                         Some(Ok((msg, _))) => {
                             let arrived_ns = clock.now_ns();
-                            let _ = tx.send(Arrival {
-                                stamp_ns: msg.header.stamp.to_nanos(),
-                                arrived_ns,
-                                positions: msg.position.len(),
-                            });
+                            let _ = tx.send(arrival(msg, arrived_ns));
                         }
                         Some(Err(e)) => eprintln!("joint_commands: unreadable message: {e:?}"),
                         None => {}
                     }
                 }
             })
-        })
+        });
+        (Some(thread), None)
     };
 
     let result = (|| -> anyhow::Result<Vec<RunResult>> {
@@ -683,7 +706,10 @@ fn session(
     })();
 
     stop.store(true, Ordering::SeqCst);
-    let _ = receiver.join();
+    if let Some(thread) = receiver {
+        let _ = thread.join();
+    }
+    drop(in_reader);
     node.stop_spinner();
     let _ = spin_thread.join();
     result
@@ -990,6 +1016,13 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
              relay by inheriting the bench's)"
         ),
     };
+    let in_reader = if opts.in_reader {
+        "; each command time-stamped in the bench's DDS reader, on the thread that received \
+         it (`--in-reader`: where a hardware `joint_bridge` takes it at its tick), not after \
+         a thread of the bench woke for it"
+    } else {
+        ""
+    };
     let on_receive = if opts.solve_on_receive {
         "; the ik_solver solving on the DDS thread that receives each message \
          (`--solve-on-receive`: its `solve_on_receive` parameter)"
@@ -997,7 +1030,7 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
         ""
     };
     let measured = format!(
-        "Measured {} on {}; release build{bound}{latency}{realtime}{on_receive}; ros2-client {}, RustDDS {}{}.",
+        "Measured {} on {}; release build{bound}{latency}{realtime}{on_receive}{in_reader}; ros2-client {}, RustDDS {}{}.",
         common::today(),
         machine(),
         lock_version(root, "ros2-client"),

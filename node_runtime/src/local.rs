@@ -263,9 +263,6 @@ impl<M: RosMessageBound> Subscription<M> {
                 M::NAME
             )));
         }
-        Ok(crate::on_receive::OnReceive::start(
-            self.dds,
-            Box::new(handler),
-        ))
+        Ok(crate::on_receive::OnReceive::new(self.dds, handler))
     }
 }

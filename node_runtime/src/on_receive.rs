@@ -118,7 +118,17 @@ impl<M: RosMessageBound> std::fmt::Debug for OnReceive<M> {
 }
 
 impl<M: RosMessageBound> OnReceive<M> {
-    pub(crate) fn start(
+    /// Hands each message of a plain ros2-client `subscription` to `handler` on its DDS
+    /// thread, from those already waiting on. A node's subscriptions go through
+    /// [`crate::Subscription::on_receive`], which refuses a composed node's.
+    pub fn new(
+        subscription: ros2_client::Subscription<M>,
+        handler: impl FnMut(Received<M>) + Send + 'static,
+    ) -> Self {
+        Self::start(subscription, Box::new(handler))
+    }
+
+    fn start(
         subscription: ros2_client::Subscription<M>,
         handler: Box<dyn FnMut(Received<M>) + Send>,
     ) -> Self {
