@@ -125,13 +125,7 @@ impl<M: RosMessageBound> OnReceive<M> {
         subscription: ros2_client::Subscription<M>,
         handler: impl FnMut(Received<M>) + Send + 'static,
     ) -> Self {
-        Self::start(subscription, Box::new(handler))
-    }
-
-    fn start(
-        subscription: ros2_client::Subscription<M>,
-        handler: Box<dyn FnMut(Received<M>) + Send>,
-    ) -> Self {
+        let handler: Box<dyn FnMut(Received<M>) + Send> = Box::new(handler);
         let shared = Arc::new(Shared {
             handling: Mutex::new(Some((subscription, handler))),
             woken: AtomicBool::new(false),
