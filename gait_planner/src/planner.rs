@@ -254,7 +254,7 @@ impl GaitPlanner {
     /// True when [`Self::set_params`] with `params` would run the timing search (a duration
     /// left at 0, and not the parameters of the search this planner keeps): 0.3-1.2 s, to be
     /// run off a control loop ([`Self::new`] on another thread, then
-    /// [`Self::remember_auto_timing`]).
+    /// [`Self::remember_checks`]).
     pub fn needs_timing_search(&self, params: &GaitParams) -> bool {
         params.has_auto_timing()
             && !matches!(&self.auto_timing, Some((given, _, _)) if given == params)
@@ -263,7 +263,7 @@ impl GaitPlanner {
     /// Takes the timing search and the checks `other` made (a planner of the same robot
     /// checked for some parameters, e.g. on another thread) so that [`Self::set_params`]
     /// with those parameters neither searches nor checks again.
-    pub fn remember_auto_timing(&mut self, other: &GaitPlanner) {
+    pub fn remember_checks(&mut self, other: &GaitPlanner) {
         if other.auto_timing.is_some() {
             self.auto_timing = other.auto_timing.clone();
         }
@@ -622,7 +622,7 @@ impl GaitPlanner {
 
     /// Changes the parameters between walks, after the same check as [`Self::new`] (not
     /// walked again for the parameters last checked, here or by the planner given to
-    /// [`Self::remember_auto_timing`]), and starts the next walk from the configured first
+    /// [`Self::remember_checks`]), and starts the next walk from the configured first
     /// foot and forward stride. Refused during a walk, and for the hip height (while
     /// crouched) and the control rate, which would make the pose or the tick times jump.
     pub fn set_params(&mut self, params: GaitParams) -> Result<(), GaitError> {

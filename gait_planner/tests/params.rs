@@ -312,7 +312,7 @@ fn parameters_given_again_give_what_their_check_gave() {
         ..params.clone()
     };
     let other = gait_planner::GaitPlanner::new(model, shorter.clone()).unwrap();
-    planner.remember_auto_timing(&other);
+    planner.remember_checks(&other);
     planner.set_params(shorter).unwrap();
     assert_eq!(planner.config(), other.config());
     assert_ne!(planner.config(), &checked);

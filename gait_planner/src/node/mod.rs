@@ -689,7 +689,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     None => ros.node.time_now().into(),
                 };
                 while let Ok((p, checked)) = rx.try_recv() {
-                    planner.remember_auto_timing(&checked);
+                    planner.remember_checks(&checked);
                     match planner.set_params(p.clone()) {
                         Ok(()) => {
                             params = p;
@@ -733,7 +733,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                             msg.step_length, msg.step_duration
                         )),
                         Ok(Ok(checked)) => {
-                            planner.remember_auto_timing(&checked);
+                            planner.remember_checks(&checked);
                             if let Some(auto) = checked.auto_timing_summary() {
                                 ros.info(&auto);
                             }
