@@ -46,12 +46,19 @@ pub fn create_node(
     for (k, v) in declared {
         options = options.declare_parameter(k, v.clone());
     }
+    // ros2-client validates the declared values too as it makes the node: those are the
+    // start-up values, which the node has read already. Once it is made, every set goes to
+    // the node's check, one back to a start-up value too (else the store would say that
+    // value while the node kept the one set before).
+    let starting = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
     if let Some(f) = on_set {
-        // ros2-client validates the declared values too: those are the start-up values.
         let initial = declared.clone();
+        let starting = starting.clone();
         options =
             options.parameter_validator(Box::new(move |name: &str, value: &ParameterValue| {
-                if initial.get(name) == Some(value) {
+                if starting.load(std::sync::atomic::Ordering::SeqCst)
+                    && initial.get(name) == Some(value)
+                {
                     Ok(())
                 } else {
                     f(name, value)
@@ -64,6 +71,7 @@ pub fn create_node(
             what: format!("node {name}"),
             message: format!("{e:?}"),
         })?;
+    starting.store(false, std::sync::atomic::Ordering::SeqCst);
     if use_sim_time {
         node.set_parameter("use_sim_time", ParameterValue::Boolean(true))
             .map_err(|e| RosError::Params(format!("use_sim_time: {e}")))?;
