@@ -344,19 +344,45 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
                 .then_some(stamp)
         })
     };
+    // The phases published between two log lines: idle ticks, and perhaps the walk's first
+    // (stamped at the tick's start, before the log line).
+    let idle_between = |from: i64, to: i64, what: &str| {
+        let during: Vec<&str> = phases
+            .iter()
+            .filter(|p| (from..to).contains(&p["stamp"].as_i64().unwrap()))
+            .map(|p| p["phase"].as_str().unwrap())
+            .collect();
+        assert!(
+            during.len() >= 2 && during[..during.len() - 1].iter().all(|p| *p == "idle"),
+            "phases published during the {what}: {during:?}"
+        );
+    };
     let searching = logged("searching their timing", 0).expect("the search was logged");
     let found = logged("durations left at 0 (auto)", searching).expect("its result logged");
-    let during: Vec<&str> = phases
-        .iter()
-        .filter(|p| (searching..found).contains(&p["stamp"].as_i64().unwrap()))
-        .map(|p| p["phase"].as_str().unwrap())
-        .collect();
-    // (The last may be the walk's first tick: stamped at the tick's start, before the log.)
-    assert!(
-        during.len() >= 2 && during[..during.len() - 1].iter().all(|p| *p == "idle"),
-        "phases published during the search: {during:?}"
-    );
+    idle_between(searching, found, "search");
     let from = v["searched_walk_from"].as_u64().unwrap() as usize;
+    assert!(phases[from..].iter().any(|p| p["phase"] == "half_step"));
+    // Durations set again, then a walk command with a new step length: no timing search,
+    // but its check walks (0.1 s here) run off the loop too on the monotonic clock, the
+    // standing robot's ticks going on meanwhile (in the loop, none came between the two log
+    // lines, and on a robot a longer stall trips the joint bridge's watchdog).
+    assert_eq!(v["set_timed"]["successful"], true, "{}", v["set_timed"]);
+    assert_eq!(v["checked_walk_finished"], true);
+    let planner_log = || -> Vec<&str> {
+        v["rosout"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|m| m["name"].as_str().unwrap().ends_with("gait_planner"))
+            .map(|m| m["msg"].as_str().unwrap())
+            .collect()
+    };
+    let checking = logged("checking them off the control loop", found)
+        .unwrap_or_else(|| panic!("the check was not logged: {:#?}", planner_log()));
+    let passed = logged("passed their check", checking)
+        .unwrap_or_else(|| panic!("its result was not logged: {:#?}", planner_log()));
+    idle_between(checking, passed, "check");
+    let from = v["checked_walk_from"].as_u64().unwrap() as usize;
     assert!(phases[from..].iter().any(|p| p["phase"] == "half_step"));
     assert_eq!(v["set_invalid"]["successful"], false);
     assert!(

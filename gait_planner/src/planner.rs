@@ -252,12 +252,21 @@ impl GaitPlanner {
     }
 
     /// True when [`Self::set_params`] with `params` would run the timing search (a duration
-    /// left at 0, and not the parameters of the search this planner keeps): 0.3-1.2 s, to be
-    /// run off a control loop ([`Self::new`] on another thread, then
-    /// [`Self::remember_checks`]).
+    /// left at 0, for parameters neither checked nor searched here): 0.3-1.2 s, to be run
+    /// off a control loop ([`Self::new`] on another thread, then [`Self::remember_checks`]).
     pub fn needs_timing_search(&self, params: &GaitParams) -> bool {
         params.has_auto_timing()
+            && self.needs_check(params)
             && !matches!(&self.auto_timing, Some((given, _, _)) if given == params)
+    }
+
+    /// True when [`Self::set_params`] with `params` would walk the check walks (parameters
+    /// other than those last checked here or taken with [`Self::remember_checks`]): tens to
+    /// hundreds of milliseconds (and the timing search too, if
+    /// [`Self::needs_timing_search`]), which a control loop on the wall clock runs off the
+    /// loop as it does the search.
+    pub fn needs_check(&self, params: &GaitParams) -> bool {
+        !matches!(&self.checked, Some((given, _)) if given == params)
     }
 
     /// Takes the timing search and the checks `other` made (a planner of the same robot

@@ -291,6 +291,7 @@ fn parameters_given_again_give_what_their_check_gave() {
     let params = slow();
     let mut planner = planner(params.clone());
     let checked = planner.config().clone();
+    assert!(!planner.needs_check(&params));
     let side = gait_planner::Stride {
         forward_m: 0.0,
         left_m: checked.side_step_m,
@@ -311,8 +312,13 @@ fn parameters_given_again_give_what_their_check_gave() {
         step_length_m: checked.step_length_m - 0.015,
         ..params.clone()
     };
+    // (Durations set: a check, no timing search, which a node runs off its loop alike.)
+    assert!(planner.needs_check(&shorter));
+    assert!(!planner.needs_timing_search(&shorter));
     let other = gait_planner::GaitPlanner::new(model, shorter.clone()).unwrap();
     planner.remember_checks(&other);
+    assert!(!planner.needs_check(&shorter));
+    assert!(planner.needs_check(&params));
     planner.set_params(shorter).unwrap();
     assert_eq!(planner.config(), other.config());
     assert_ne!(planner.config(), &checked);
@@ -326,7 +332,31 @@ fn parameters_given_again_give_what_their_check_gave() {
         step_length_m: 0.5,
         ..params
     };
+    assert!(planner.needs_check(&long));
     let e = planner.set_params(long).unwrap_err().to_string();
     assert!(e.contains("step_length_m") && e.contains("0.5"), "{e}");
     assert_eq!(planner.config(), &checked);
+}
+
+/// Durations left at 0 (auto): parameters checked need neither the timing search nor the
+/// check walks again; changed, both; checked on another planner and taken over, neither.
+#[test]
+fn auto_durations_need_the_search_and_the_check_only_when_new() {
+    let params = GaitParams::default();
+    assert!(params.has_auto_timing());
+    let mut planner = planner(params.clone());
+    assert!(!planner.needs_timing_search(&params));
+    assert!(!planner.needs_check(&params));
+    let higher = GaitParams {
+        foot_lift_m: planner.config().foot_lift_m + 0.001,
+        ..params.clone()
+    };
+    assert!(planner.needs_timing_search(&higher));
+    assert!(planner.needs_check(&higher));
+    let other = gait_planner::GaitPlanner::new(default_model(), higher.clone()).unwrap();
+    planner.remember_checks(&other);
+    assert!(!planner.needs_timing_search(&higher));
+    assert!(!planner.needs_check(&higher));
+    planner.set_params(higher).unwrap();
+    assert_eq!(planner.config(), other.config());
 }

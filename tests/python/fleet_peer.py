@@ -293,6 +293,15 @@ def scenario_walk(bin_dir, params):
     out["searched_walk_finished"] = peer.spin(30.0, lambda: walked_from(n1))
     out["searched_walk_from"] = n1
     peer.spin(0.3)
+    # Durations set again, then a walk command with a new step length: on the monotonic
+    # clock its check walks run off the control loop too, which goes on ticking; then the walk.
+    out["set_timed"] = peer.set_double("gait_planner", "step_duration_s", 1.0)
+    peer.spin(0.5)
+    n2 = len(peer.phases)
+    peer.walk(1, step_length=0.04)
+    out["checked_walk_finished"] = peer.spin(30.0, lambda: walked_from(n2))
+    out["checked_walk_from"] = n2
+    peer.spin(0.3)
     out.update(phases=peer.phases, commands=peer.commands, rosout=peer.rosout,
                states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None,
                markers=markers)

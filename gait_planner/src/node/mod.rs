@@ -38,6 +38,13 @@
 //! `walk_command` with a `start_time` is taken at the first tick at or after it; the same
 //! stamped command received again is taken once; a stop, when taken, also cancels the walks
 //! still waiting for their start time; at most 64 commands wait (more are dropped, warned).
+//! A `walk_command` with new parameters (its `step_length` or `step_duration`) waits for
+//! their check walks (and, with durations left at 0, their timing search), and the commands
+//! after it wait for it: on the monotonic clock they run on a thread of their own, so the
+//! loop keeps publishing the standing robot's ticks meanwhile (on a robot, a stall of the
+//! loop longer than the joint bridge's `watchdog_timeout_s` would trip its watchdog); on
+//! simulated time only the timing search does, and the check walks run in the loop, so a
+//! lockstep walk starts at the same tick however fast the computer.
 //!
 //! With `plan_ahead` (read at start; needs `use_sim_time`) tick k's messages go out at the
 //! `/clock` of tick k - 1, stamped with tick k's time (at the first tick, both): the joint
@@ -85,21 +92,22 @@ const NODE_PARAMS: [&str; 5] = [
     AHEAD_PARAM,
 ];
 
-/// What a timing search off the control loop answers: the checked planner, or why not.
-type SearchResult = Result<GaitPlanner, crate::GaitError>;
+/// What a check off the control loop answers: the checked planner, or why not.
+type CheckResult = Result<GaitPlanner, crate::GaitError>;
 
-/// Runs [`GaitPlanner::new`] for `params` (its timing search, 0.3-1.2 s) on its own thread,
-/// for the walk command `msg` that waits for it; `None` (logged) if no thread starts.
-fn spawn_timing_search(
+/// Runs [`GaitPlanner::new`] for `params` (the check walks, 0.05-0.5 s, with durations left
+/// at 0 the timing search before them, 0.3-1.2 s) on its own thread, for the walk command
+/// `msg` that waits for it; `None` (logged) if no thread starts.
+fn spawn_check(
     ros: &RosNode,
     model: &BipedModel,
     params: GaitParams,
     msg: WalkCommand,
-) -> Option<(std::sync::mpsc::Receiver<SearchResult>, WalkCommand)> {
+) -> Option<(std::sync::mpsc::Receiver<CheckResult>, WalkCommand)> {
     let (tx, rx) = std::sync::mpsc::channel();
     let model = model.clone();
     let spawned = std::thread::Builder::new()
-        .name("timing-search".into())
+        .name("gait-check".into())
         .spawn(move || {
             let _ = tx.send(GaitPlanner::new(model, params));
         });
@@ -107,7 +115,7 @@ fn spawn_timing_search(
         Ok(_) => Some((rx, msg)),
         Err(e) => {
             ros.warn(&format!(
-                "walk_command refused: no thread for the timing search: {e}"
+                "walk_command refused: no thread to check its parameters on: {e}"
             ));
             None
         }
@@ -192,6 +200,11 @@ fn declared(
 /// What the node does with a command; pure, so every case is the same whoever sends it.
 struct Commands {
     follower: VelocityFollower,
+    /// New parameters of a walk command are checked off the control loop even when no
+    /// timing search is needed (on the monotonic clock, where the loop must keep ticking);
+    /// on simulated time the check walks run in the loop, so that a lockstep walk's start
+    /// tick does not depend on how fast the computer is.
+    checks_off_loop: bool,
 }
 
 /// The velocity of a Twist (the axes a walker uses), after checking that every one of its
@@ -228,26 +241,27 @@ impl Commands {
         }
     }
 
-    /// Takes a walk command: warnings to log, and the parameters whose timing search must run
-    /// (off the loop) before it can walk, if any: the command waits for it
-    /// ([`GaitPlanner::needs_timing_search`]), nothing else of it is done yet.
+    /// Takes a walk command: warnings to log, and the parameters that must be checked off
+    /// the loop before it can walk, if any (a timing search, [`GaitPlanner::needs_timing_search`];
+    /// with `checks_off_loop` any check, [`GaitPlanner::needs_check`]): the command waits for
+    /// it, nothing else of it is done yet.
     fn walk_command(
         &mut self,
         planner: &mut GaitPlanner,
         c: &WalkCommand,
         base: &mut GaitParams,
     ) -> (Vec<String>, Option<GaitParams>) {
-        let mut search = None;
-        let warnings = self.walk_command_or_search(planner, c, base, &mut search);
-        (warnings, search)
+        let mut check = None;
+        let warnings = self.walk_command_or_check(planner, c, base, &mut check);
+        (warnings, check)
     }
 
-    fn walk_command_or_search(
+    fn walk_command_or_check(
         &mut self,
         planner: &mut GaitPlanner,
         c: &WalkCommand,
         base: &mut GaitParams,
-        search: &mut Option<GaitParams>,
+        check: &mut Option<GaitParams>,
     ) -> Vec<String> {
         let mut warnings = Vec::new();
         if c.stop {
@@ -294,8 +308,10 @@ impl Commands {
                     "walk_command: step_length = {} and step_duration = {} apply from the next walk; this one keeps its steps",
                     c.step_length, c.step_duration
                 ));
-            } else if planner.needs_timing_search(&params) {
-                *search = Some(params);
+            } else if planner.needs_timing_search(&params)
+                || (self.checks_off_loop && planner.needs_check(&params))
+            {
+                *check = Some(params);
                 return warnings;
             } else if let Err(e) = planner.set_params(params.clone()) {
                 warnings.push(format!(
@@ -530,7 +546,8 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let odom_tf = setup.bool_param(ODOM_TF_PARAM, true)?;
     let stand_at_start = setup.bool_param(STAND_PARAM, true)?;
     let plan_ahead = setup.bool_param(AHEAD_PARAM, false)?;
-    if plan_ahead && !setup.use_sim_time() {
+    let use_sim_time = setup.use_sim_time();
+    if plan_ahead && !use_sim_time {
         anyhow::bail!(
             "parameter `{AHEAD_PARAM}` = true needs `use_sim_time` = true: a tick ahead of a lockstep simulator's `/clock`; on the monotonic clock the joint bridge takes each command when it comes"
         );
@@ -633,14 +650,15 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
 
     let mut commands = Commands {
         follower: VelocityFollower::new(),
+        checks_off_loop: !use_sim_time,
     };
     let result: anyhow::Result<()> = executor.run(async {
         let mut last_phase = None;
         // Walk commands with a start time still ahead (bounded; a stop empties it).
         let mut pending: StartQueue<WalkCommand> = StartQueue::default();
         let mut last_stamped: Option<WalkCommand> = None;
-        // A walk command whose new parameters' timing is being searched off the loop.
-        let mut searching: Option<(std::sync::mpsc::Receiver<SearchResult>, WalkCommand)> = None;
+        // A walk command whose new parameters are being checked (timing searched) off the loop.
+        let mut checking: Option<(std::sync::mpsc::Receiver<CheckResult>, WalkCommand)> = None;
         let mut last_sent: Option<(GaitPhase, Option<AnkleTargets>)> = None;
         // The last tick planned, and the tick period on simulated time (ns).
         let mut planned: Option<u64> = None;
@@ -720,13 +738,14 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                         }
                     }
                 }
-                // A walk command waiting for its parameters' timing search (on its own thread, so
-                // that the loop keeps ticking): when found, it is taken as if it came now.
-                if let Some((rx, msg)) = searching.take() {
+                // A walk command waiting for its parameters' check or timing search (on its own
+                // thread, so that the loop keeps ticking): when passed, it is taken as if it
+                // came now.
+                if let Some((rx, msg)) = checking.take() {
                     match rx.try_recv() {
-                        Err(std::sync::mpsc::TryRecvError::Empty) => searching = Some((rx, msg)),
+                        Err(std::sync::mpsc::TryRecvError::Empty) => checking = Some((rx, msg)),
                         Err(std::sync::mpsc::TryRecvError::Disconnected) => {
-                            ros.warn("walk_command refused: its timing search stopped");
+                            ros.warn("walk_command refused: the check of its parameters stopped");
                         }
                         Ok(Err(e)) => ros.warn(&format!(
                             "walk_command refused: step_length = {}, step_duration = {}: {e}",
@@ -734,25 +753,29 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                         )),
                         Ok(Ok(checked)) => {
                             planner.remember_checks(&checked);
-                            if let Some(auto) = checked.auto_timing_summary() {
-                                ros.info(&auto);
+                            match checked.auto_timing_summary() {
+                                Some(auto) => ros.info(&auto),
+                                None => ros.info(&format!(
+                                    "walk_command: step_length = {}, step_duration = {}: the new parameters passed their check",
+                                    msg.step_length, msg.step_duration
+                                )),
                             }
                             let (warnings, again) =
                                 commands.walk_command(&mut planner, &msg, &mut params);
                             for w in warnings {
                                 ros.warn(&w);
                             }
-                            // Parameters changed meanwhile (a parameter set): search again for
+                            // Parameters changed meanwhile (a parameter set): check again for
                             // the command on the new ones.
                             if let Some(p) = again {
-                                searching = spawn_timing_search(&ros, planner.model(), p, msg);
+                                checking = spawn_check(&ros, planner.model(), p, msg);
                             }
                         }
                     }
                 }
                 // In arrival order, each at its start time (zero: now). A stop also cancels the
                 // walks still waiting for their start time: a stop means stop.
-                while searching.is_none()
+                while checking.is_none()
                     && let Some(msg) = pending.take_due(now.to_nanos())
                 {
                     if msg.stop {
@@ -763,16 +786,18 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                             ));
                         }
                     }
-                    let (warnings, search) = commands.walk_command(&mut planner, &msg, &mut params);
+                    let (warnings, check) = commands.walk_command(&mut planner, &msg, &mut params);
                     for w in warnings {
                         ros.warn(&w);
                     }
-                    if let Some(p) = search {
-                        ros.info(
-                            "walk_command: new parameters with durations left at 0 (auto): searching their timing; the walk starts when it is found",
-                        );
+                    if let Some(p) = check {
+                        ros.info(if planner.needs_timing_search(&p) {
+                            "walk_command: new parameters with durations left at 0 (auto): searching their timing; the walk starts when it is found"
+                        } else {
+                            "walk_command: new parameters: checking them off the control loop; the walk starts when they pass"
+                        });
                         // The commands after it wait for it, in order (the loop's condition).
-                        searching = spawn_timing_search(&ros, planner.model(), p, msg);
+                        checking = spawn_check(&ros, planner.model(), p, msg);
                     }
                 }
                 while let Some(h) = ros.take_next(&bridge_holding, "joint_bridge/holding") {
