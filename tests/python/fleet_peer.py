@@ -276,32 +276,28 @@ def scenario_walk(bin_dir, params):
     # step) swings that long.
     out["set_auto"] = peer.set_double("gait_planner", "step_duration_s", 0.0)
     peer.spin(0.5)
-    n0 = len(peer.phases)
-    peer.walk(1)
 
     def walked_from(n):
         later = [p["phase"] for p in peer.phases[n:]]
         return any(ph != "idle" for ph in later) and later[-1] == "idle"
 
-    out["auto_walk_finished"] = peer.spin(30.0, lambda: walked_from(n0))
-    out["auto_walk_from"] = n0
-    peer.spin(0.3)
+    def one_step(name, step_length=0.0):
+        """A one-step walk, recorded as `{name}_walk_finished` and `{name}_walk_from`."""
+        n = len(peer.phases)
+        peer.walk(1, step_length=step_length)
+        out[f"{name}_walk_finished"] = peer.spin(30.0, lambda: walked_from(n))
+        out[f"{name}_walk_from"] = n
+        peer.spin(0.3)
+
+    one_step("auto")
     # A walk command with a new step length, durations auto: its timing search runs off the
     # control loop, which goes on ticking meanwhile; then the walk.
-    n1 = len(peer.phases)
-    peer.walk(1, step_length=0.05)
-    out["searched_walk_finished"] = peer.spin(30.0, lambda: walked_from(n1))
-    out["searched_walk_from"] = n1
-    peer.spin(0.3)
+    one_step("searched", step_length=0.05)
     # Durations set again, then a walk command with a new step length: on the monotonic
     # clock its check walks run off the control loop too, which goes on ticking; then the walk.
     out["set_timed"] = peer.set_double("gait_planner", "step_duration_s", 1.0)
     peer.spin(0.5)
-    n2 = len(peer.phases)
-    peer.walk(1, step_length=0.04)
-    out["checked_walk_finished"] = peer.spin(30.0, lambda: walked_from(n2))
-    out["checked_walk_from"] = n2
-    peer.spin(0.3)
+    one_step("checked", step_length=0.04)
     out.update(phases=peer.phases, commands=peer.commands, rosout=peer.rosout,
                states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None,
                markers=markers)
