@@ -281,6 +281,14 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     ));
     assert!(rosout_has(&v, "gait_planner", &["step_length = -1"]));
     assert!(rosout_has(&v, "gait_planner", &["step_duration = inf"]));
+    assert!(rosout_has(
+        &v,
+        "gait_planner",
+        &[
+            "walk_command refused: step_length = 0.03",
+            "a walk in progress"
+        ]
+    ));
     assert!(
         rosout_has(
             &v,

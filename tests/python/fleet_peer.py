@@ -266,6 +266,8 @@ def scenario_walk(bin_dir, params):
     peer.walk_pub.publish(b"\x00\x01\x00\x00\x03\x00")
     peer.walk(3, step_length=-1.0)
     peer.walk(3, step_duration=math.inf)
+    # A step length the walk in progress cannot take (parameters change between walks).
+    peer.walk(3, step_length=0.03)
     out["set_during_walk"] = peer.set_double("gait_planner", "step_duration_s", 0.8)
     out["finished"] = peer.spin(40.0, peer.idle_after_walking)
     peer.spin(0.5)

@@ -304,10 +304,13 @@ impl Commands {
         }
         if params != *base || planner.phase() == PhaseKind::Idle {
             if planner.phase() != PhaseKind::Idle {
+                // Parameters change between walks only: a command that cannot be taken
+                // whole is not taken (its steps would otherwise change the walk).
                 warnings.push(format!(
-                    "walk_command: step_length = {} and step_duration = {} apply from the next walk; this one keeps its steps",
+                    "walk_command refused: step_length = {}, step_duration = {}: a walk in progress keeps its steps; send it again once the walk has ended",
                     c.step_length, c.step_duration
                 ));
+                return warnings;
             } else if planner.needs_timing_search(&params)
                 || (self.checks_off_loop && planner.needs_check(&params))
             {
