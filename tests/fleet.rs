@@ -215,6 +215,45 @@ fn rosout_has(v: &Value, node: &str, needles: &[&str]) -> bool {
     })
 }
 
+/// The phases (stamp, name) of the first walk in the recorded phases from index `from`, its
+/// first non-idle tick to its last, and the joint commands stamped as those ticks.
+fn walk_and_commands(v: &Value, from: usize) -> (Vec<(i64, &str)>, Vec<&Value>) {
+    let walk: Vec<(i64, &str)> = v["phases"].as_array().unwrap()[from..]
+        .iter()
+        .map(|p| (p["stamp"].as_i64().unwrap(), p["phase"].as_str().unwrap()))
+        .skip_while(|(_, ph)| *ph == "idle")
+        .take_while(|(_, ph)| *ph != "idle")
+        .collect();
+    let stamps: std::collections::HashSet<i64> = walk.iter().map(|(s, _)| *s).collect();
+    let commands = v["commands"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|c| stamps.contains(&c["stamp"].as_i64().unwrap()))
+        .collect();
+    (walk, commands)
+}
+
+/// Each joint command of a walk against the plan's joints at its tick, and the phases.
+fn assert_walk_is_plan(
+    walk: &[(i64, &str)],
+    commands: &[&Value],
+    plan: &[gait_planner::GaitSample],
+    legs: &[(String, usize)],
+) {
+    assert_eq!(walk.len(), plan.len(), "phase ticks received vs planned");
+    assert_eq!(
+        commands.len(),
+        plan.len(),
+        "joint commands received for the walk's ticks (none lost)"
+    );
+    for (k, (cmd, row)) in commands.iter().zip(plan).enumerate() {
+        assert_eq!(walk[k].1, row.phase.as_str(), "tick {k}: phase");
+        let tick = format!("tick {k} ({})", row.phase);
+        assert_leg_command(cmd, legs, &row.joints_rad, 1e-6, &tick);
+    }
+}
+
 #[test]
 fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     let v = peer_with_params("walk", 61, Some(slow_params("gait_slow.yaml")));
@@ -229,19 +268,7 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     // The joint commands of the walk, from the first crouch tick to the end of the walk, by
     // the stamps /gait/phase and /joint_commands share.
     let phases = v["phases"].as_array().unwrap();
-    let walk: Vec<(i64, &str)> = phases
-        .iter()
-        .map(|p| (p["stamp"].as_i64().unwrap(), p["phase"].as_str().unwrap()))
-        .skip_while(|(_, ph)| *ph == "idle")
-        .take_while(|(_, ph)| *ph != "idle")
-        .collect();
-    let stamps: std::collections::HashSet<i64> = walk.iter().map(|(s, _)| *s).collect();
-    let commands: Vec<&Value> = v["commands"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|c| stamps.contains(&c["stamp"].as_i64().unwrap()))
-        .collect();
+    let (walk, commands) = walk_and_commands(&v, 0);
 
     // The same walk planned offline, as `biped plan` does (the nodes have the slow walk's
     // parameter file).
@@ -250,21 +277,11 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
         .unwrap()
         .plan(WalkRequest::Steps(2))
         .unwrap();
-    assert_eq!(walk.len(), plan.len(), "phase ticks received vs planned");
-    assert_eq!(
-        commands.len(),
-        plan.len(),
-        "joint commands received for the walk's ticks (none lost)"
-    );
     let legs: Vec<(String, usize)> = model
         .leg_joints()
         .map(|(_, j)| (j.name.clone(), j.dof))
         .collect();
-    for (k, (cmd, row)) in commands.iter().zip(&plan).enumerate() {
-        assert_eq!(walk[k].1, row.phase.as_str(), "tick {k}: phase");
-        let tick = format!("tick {k} ({})", row.phase);
-        assert_leg_command(cmd, &legs, &row.joints_rad, 1e-6, &tick);
-    }
+    assert_walk_is_plan(&walk, &commands, &plan, &legs);
 
     assert_markers_draw_the_balance(&v, &walk, &plan, &model);
 
@@ -392,6 +409,21 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     idle_between(checking, passed, "check");
     let from = v["checked_walk_from"].as_u64().unwrap() as usize;
     assert!(phases[from..].iter().any(|p| p["phase"] == "half_step"));
+    // Then a walk command without a step length: the configured one (the parameters as
+    // set: the slow walk with foot_lift_m 0.02), not the last command's 4 cm. Planned
+    // offline as a second walk (the robot crouched already).
+    assert_eq!(v["configured_walk_finished"], true);
+    let configured = GaitParams {
+        foot_lift_m: 0.02,
+        ..GaitParams::slow(&model)
+    };
+    let mut offline = GaitPlanner::new(model.clone(), configured.clone()).unwrap();
+    offline.plan(WalkRequest::Steps(1)).unwrap();
+    offline.set_params(configured).unwrap();
+    let second = offline.plan(WalkRequest::Steps(1)).unwrap();
+    let (walk, commands) =
+        walk_and_commands(&v, v["configured_walk_from"].as_u64().unwrap() as usize);
+    assert_walk_is_plan(&walk, &commands, &second, &legs);
     assert_eq!(v["set_invalid"]["successful"], false);
     assert!(
         v["set_invalid"]["reason"]

@@ -300,6 +300,8 @@ def scenario_walk(bin_dir, params):
     out["set_timed"] = peer.set_double("gait_planner", "step_duration_s", 1.0)
     peer.spin(0.5)
     one_step("checked", step_length=0.04)
+    # And one without: the configured step length again, not the last command's.
+    one_step("configured")
     out.update(phases=peer.phases, commands=peer.commands, rosout=peer.rosout,
                states_count=len(peer.states), states_last=peer.states[-1] if peer.states else None,
                markers=markers)

@@ -241,7 +241,10 @@ impl Commands {
         }
     }
 
-    /// Takes a walk command: warnings to log, and the parameters that must be checked off
+    /// Takes a walk command on the node's parameters `base`: its own `step_length` and
+    /// `step_duration` are for the walk it starts (a 0 is `base`'s, the configured value, not
+    /// a previous command's), so `base` stays what `ros2 param get` says. Returns warnings
+    /// to log, and the parameters that must be checked off
     /// the loop before it can walk, if any (a timing search, [`GaitPlanner::needs_timing_search`];
     /// with `checks_off_loop` any check, [`GaitPlanner::needs_check`]): the command waits for
     /// it, nothing else of it is done yet.
@@ -249,7 +252,7 @@ impl Commands {
         &mut self,
         planner: &mut GaitPlanner,
         c: &WalkCommand,
-        base: &mut GaitParams,
+        base: &GaitParams,
     ) -> (Vec<String>, Option<GaitParams>) {
         let mut check = None;
         let warnings = self.walk_command_or_check(planner, c, base, &mut check);
@@ -260,7 +263,7 @@ impl Commands {
         &mut self,
         planner: &mut GaitPlanner,
         c: &WalkCommand,
-        base: &mut GaitParams,
+        base: &GaitParams,
         check: &mut Option<GaitParams>,
     ) -> Vec<String> {
         let mut warnings = Vec::new();
@@ -316,14 +319,12 @@ impl Commands {
             {
                 *check = Some(params);
                 return warnings;
-            } else if let Err(e) = planner.set_params(params.clone()) {
+            } else if let Err(e) = planner.set_params(params) {
                 warnings.push(format!(
                     "walk_command refused: step_length = {}, step_duration = {}: {e}",
                     c.step_length, c.step_duration
                 ));
                 return warnings;
-            } else {
-                *base = params;
             }
         }
         // A walk command walks at its velocity, or straight ahead at the configured step,
@@ -764,7 +765,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                                 )),
                             }
                             let (warnings, again) =
-                                commands.walk_command(&mut planner, &msg, &mut params);
+                                commands.walk_command(&mut planner, &msg, &params);
                             for w in warnings {
                                 ros.warn(&w);
                             }
@@ -789,7 +790,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                             ));
                         }
                     }
-                    let (warnings, check) = commands.walk_command(&mut planner, &msg, &mut params);
+                    let (warnings, check) = commands.walk_command(&mut planner, &msg, &params);
                     for w in warnings {
                         ros.warn(&w);
                     }
