@@ -410,9 +410,15 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
     let from = v["checked_walk_from"].as_u64().unwrap() as usize;
     assert!(phases[from..].iter().any(|p| p["phase"] == "half_step"));
     // Then a walk command without a step length: the configured one (the parameters as
-    // set: the slow walk with foot_lift_m 0.02), not the last command's 4 cm. Planned
-    // offline as a second walk (the robot crouched already).
+    // set: the slow walk with foot_lift_m 0.02), not the last command's 4 cm, with the
+    // checks its parameter set made (not checked again). Planned offline as a second walk
+    // (the robot crouched already).
     assert_eq!(v["configured_walk_finished"], true);
+    let checks = planner_log()
+        .iter()
+        .filter(|m| m.contains("checking them off the control loop"))
+        .count();
+    assert_eq!(checks, 1, "{:#?}", planner_log());
     let configured = GaitParams {
         foot_lift_m: 0.02,
         ..GaitParams::slow(&model)

@@ -205,6 +205,10 @@ struct Commands {
     /// on simulated time the check walks run in the loop, so that a lockstep walk's start
     /// tick does not depend on how fast the computer is.
     checks_off_loop: bool,
+    /// A planner checked for the node's parameters (at start, or by the parameter set that
+    /// gave them): a walk command without step values after one with them takes its checks
+    /// (and timing search) instead of walking them again.
+    base_checks: GaitPlanner,
 }
 
 /// The velocity of a Twist (the axes a walker uses), after checking that every one of its
@@ -304,6 +308,9 @@ impl Commands {
         }
         if c.step_duration > 0.0 {
             params.step_duration_s = c.step_duration;
+        }
+        if params == *base && planner.needs_check(&params) {
+            planner.remember_checks(&self.base_checks);
         }
         if params != *base || planner.phase() == PhaseKind::Idle {
             if planner.phase() != PhaseKind::Idle {
@@ -655,6 +662,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let mut commands = Commands {
         follower: VelocityFollower::new(),
         checks_off_loop: !use_sim_time,
+        base_checks: planner.clone(),
     };
     let result: anyhow::Result<()> = executor.run(async {
         let mut last_phase = None;
@@ -715,6 +723,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                     match planner.set_params(p.clone()) {
                         Ok(()) => {
                             params = p;
+                            commands.base_checks = checked;
                             clock.set_brake_ticks(brake_ticks(planner.config()));
                             ros.info("parameters changed");
                         }
@@ -760,7 +769,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                             match checked.auto_timing_summary() {
                                 Some(auto) => ros.info(&auto),
                                 None => ros.info(&format!(
-                                    "walk_command: step_length = {}, step_duration = {}: the new parameters passed their check",
+                                    "walk_command: step_length = {}, step_duration = {}: the parameters passed their check",
                                     msg.step_length, msg.step_duration
                                 )),
                             }
@@ -798,7 +807,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                         ros.info(if planner.needs_timing_search(&p) {
                             "walk_command: new parameters with durations left at 0 (auto): searching their timing; the walk starts when it is found"
                         } else {
-                            "walk_command: new parameters: checking them off the control loop; the walk starts when they pass"
+                            "walk_command: parameters not checked yet: checking them off the control loop; the walk starts when they pass"
                         });
                         // The commands after it wait for it, in order (the loop's condition).
                         checking = spawn_check(&ros, planner.model(), p, msg);
