@@ -303,7 +303,7 @@ fn an_rclpy_peer_walks_the_robot_and_gets_the_offline_plan() {
         "gait_planner",
         &[
             "walk_command refused: step_length = 0.03",
-            "a walk in progress"
+            "the walk in progress keeps its steps"
         ]
     ));
     assert!(

@@ -309,24 +309,32 @@ impl Commands {
         if c.step_duration > 0.0 {
             params.step_duration_s = c.step_duration;
         }
-        if params == *base && planner.needs_check(&params) {
-            planner.remember_checks(&self.base_checks);
-        }
-        if params != *base || planner.phase() == PhaseKind::Idle {
-            if planner.phase() != PhaseKind::Idle {
-                // Parameters change between walks only: a command that cannot be taken
-                // whole is not taken (its steps would otherwise change the walk).
+        if planner.phase() != PhaseKind::Idle {
+            // Parameters change between walks only: the walk in progress keeps its steps. A
+            // command asking for other ones is not taken at all (its steps would otherwise
+            // change the walk); one giving the walk's own values, or none, goes on.
+            let walk = planner.config();
+            let other = |given: f64, walking: f64| given > 0.0 && given != walking;
+            if other(c.step_length, walk.step_length_m)
+                || other(c.step_duration, walk.step_duration_s)
+            {
                 warnings.push(format!(
-                    "walk_command refused: step_length = {}, step_duration = {}: a walk in progress keeps its steps; send it again once the walk has ended",
-                    c.step_length, c.step_duration
+                    "walk_command refused: step_length = {}, step_duration = {}: the walk in progress keeps its steps ({} m, {} s); send it again once the walk has ended",
+                    c.step_length, c.step_duration, walk.step_length_m, walk.step_duration_s
                 ));
                 return warnings;
-            } else if planner.needs_timing_search(&params)
+            }
+        } else {
+            if params == *base && planner.needs_check(&params) {
+                planner.remember_checks(&self.base_checks);
+            }
+            if planner.needs_timing_search(&params)
                 || (self.checks_off_loop && planner.needs_check(&params))
             {
                 *check = Some(params);
                 return warnings;
-            } else if let Err(e) = planner.set_params(params) {
+            }
+            if let Err(e) = planner.set_params(params) {
                 warnings.push(format!(
                     "walk_command refused: step_length = {}, step_duration = {}: {e}",
                     c.step_length, c.step_duration
@@ -950,4 +958,75 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     .await;
     ros.info("shutting down");
     result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn steps(n: u32, step_length: f64) -> WalkCommand {
+        WalkCommand {
+            steps: n,
+            step_length,
+            ..WalkCommand::default()
+        }
+    }
+
+    /// Ticks the planner at 100 Hz from `*t` until it is idle again.
+    fn walk_to_the_end(planner: &mut GaitPlanner, t: &mut f64) {
+        for _ in 0..100_000 {
+            *t += 0.01;
+            planner.update(*t).unwrap();
+            if planner.is_idle() {
+                return;
+            }
+        }
+        panic!("the walk did not end");
+    }
+
+    /// A walk command's step values are for the walk it starts, checked in the loop on
+    /// simulated time and handed to the check thread on the monotonic clock; during a walk
+    /// its own values (or none) go on and others are refused, naming both; after it, a
+    /// command without values walks the node's parameters on the checks made for them.
+    #[test]
+    fn a_walk_commands_step_values_are_for_its_walk_and_a_walk_keeps_its_own() {
+        let model = BipedModel::from_urdf_str(ik_solver::DEFAULT_URDF, None).unwrap();
+        let base = GaitParams::slow(&model);
+        let mut planner = GaitPlanner::new(model, base.clone()).unwrap();
+        let mut commands = Commands {
+            follower: VelocityFollower::new(),
+            checks_off_loop: false,
+            base_checks: planner.clone(),
+        };
+        let (w, check) = commands.walk_command(&mut planner, &steps(2, 0.03), &base);
+        assert!(w.is_empty() && check.is_none(), "{w:?}");
+        assert_eq!(planner.config().step_length_m, 0.03);
+        let mut t = 0.0;
+        planner.update(t).unwrap();
+        assert_ne!(planner.phase(), PhaseKind::Idle);
+
+        for same in [steps(2, 0.03), steps(2, 0.0)] {
+            let (w, check) = commands.walk_command(&mut planner, &same, &base);
+            assert!(w.is_empty() && check.is_none(), "{w:?}");
+        }
+        let (w, check) = commands.walk_command(&mut planner, &steps(2, 0.04), &base);
+        assert!(check.is_none());
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].contains("refused: step_length = 0.04") && w[0].contains("(0.03 m"),
+            "{w:?}"
+        );
+        assert_eq!(planner.config().step_length_m, 0.03);
+        walk_to_the_end(&mut planner, &mut t);
+
+        commands.checks_off_loop = true;
+        let (w, check) = commands.walk_command(&mut planner, &steps(1, 0.035), &base);
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!(check.map(|p| p.step_length_m), Some(0.035));
+        assert_eq!(planner.config().step_length_m, 0.03);
+        // The node's parameters: the checks made for them at start, none to walk again.
+        let (w, check) = commands.walk_command(&mut planner, &steps(1, 0.0), &base);
+        assert!(w.is_empty() && check.is_none(), "{w:?} {check:?}");
+        assert_eq!(planner.config().step_length_m, base.step_length_m);
+    }
 }
