@@ -302,13 +302,6 @@ impl Commands {
             ));
             return warnings;
         }
-        let mut params = base.clone();
-        if c.step_length > 0.0 {
-            params.step_length_m = c.step_length;
-        }
-        if c.step_duration > 0.0 {
-            params.step_duration_s = c.step_duration;
-        }
         if planner.phase() != PhaseKind::Idle {
             // Parameters change between walks only: the walk in progress keeps its steps. A
             // command asking for other ones is not taken at all (its steps would otherwise
@@ -325,6 +318,13 @@ impl Commands {
                 return warnings;
             }
         } else {
+            let mut params = base.clone();
+            if c.step_length > 0.0 {
+                params.step_length_m = c.step_length;
+            }
+            if c.step_duration > 0.0 {
+                params.step_duration_s = c.step_duration;
+            }
             if params == *base && planner.needs_check(&params) {
                 planner.remember_checks(&self.base_checks);
             }
