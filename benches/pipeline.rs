@@ -33,8 +33,10 @@
 //! `cpu_dma_latency_us` parameter does: 0 keeps idle CPUs polling instead of halting),
 //! `--thread-priority P` (run the bench's and the relay's threads under SCHED_FIFO at
 //! priority P, as a node's `thread_priority` parameter does; the rclpy relay inherits it),
-//! `--solve-on-receive` (the ik_solver with its `solve_on_receive` parameter: each message
-//! solved on the DDS thread that received it, one thread wake-up fewer a message),
+//! `--solve-on-node-thread` (the ik_solver with its `solve_on_receive` parameter false: each
+//! message handed by the DDS thread that received it to the node's own thread, one thread
+//! wake-up more a message; the default solves on receive, and `--solve-on-receive`, which
+//! said so before it was the default, is still taken),
 //! `--in-reader` (each command time-stamped on the DDS thread that receives it, in its
 //! reader, instead of after that thread has woken the subscriber's: where a `joint_bridge`
 //! driving hardware finds it, since it takes commands on its own control tick and never
@@ -116,8 +118,8 @@ struct Opts {
     priority: Option<u8>,
     /// `--dump`: where each run's latencies go, one CSV per relay and rate.
     dump: Option<PathBuf>,
-    /// `--solve-on-receive`: the ik_solver solves on the DDS thread that receives each
-    /// message (its `solve_on_receive` parameter).
+    /// The ik_solver solves on the DDS thread that receives each message (its
+    /// `solve_on_receive` parameter, true by default; `--solve-on-node-thread` sets false).
     solve_on_receive: bool,
     /// `--in-reader`: commands time-stamped on the DDS thread that receives them.
     in_reader: bool,
@@ -135,7 +137,7 @@ impl Opts {
             latency_us: None,
             priority: None,
             dump: None,
-            solve_on_receive: false,
+            solve_on_receive: true,
             in_reader: false,
         };
         let mut it = args.into_iter();
@@ -147,6 +149,7 @@ impl Opts {
                 "--write" => o.write = true,
                 "--wait-idle" => o.wait_idle = true,
                 "--solve-on-receive" => o.solve_on_receive = true,
+                "--solve-on-node-thread" => o.solve_on_receive = false,
                 "--in-reader" => o.in_reader = true,
                 "--n-100hz" => o.n_100hz = value()?.parse().context("--n-100hz")?,
                 "--n-1khz" => o.n_1khz = value()?.parse().context("--n-1khz")?,
@@ -174,7 +177,7 @@ impl Opts {
                     }
                 }
                 other => bail!(
-                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...], --cpu-dma-latency-us US, --thread-priority P, --solve-on-receive, --in-reader, --dump DIR)"
+                    "unknown argument `{other}` (options: --n-100hz N, --n-1khz N, --only ik_solver|rclpy, --write, --wait-idle, --cpu-affinity CPU[,CPU...], --cpu-dma-latency-us US, --thread-priority P, --solve-on-node-thread, --in-reader, --dump DIR)"
                 ),
             }
         }
@@ -246,9 +249,11 @@ fn run() -> anyhow::Result<()> {
                     // holds it as a user would set it.
                     cmd.args(["-p", &format!("cpu_dma_latency_us:={us}")]);
                 }
-                if opts.solve_on_receive {
-                    cmd.args(["-p", "solve_on_receive:=true"]);
-                }
+                // Given either way: the figures say which, whatever the node's default.
+                cmd.args([
+                    "-p",
+                    &format!("solve_on_receive:={}", opts.solve_on_receive),
+                ]);
                 if let Some(priority) = opts.priority {
                     // Inherited as well; the parameter is what a user would set.
                     cmd.args(["-p", &format!("thread_priority:={priority}")]);
@@ -1024,10 +1029,11 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
         ""
     };
     let on_receive = if opts.solve_on_receive {
-        "; the ik_solver solving on the DDS thread that receives each message \
-         (`--solve-on-receive`: its `solve_on_receive` parameter)"
+        "; the ik_solver solving on the DDS thread that receives each message (its \
+         `solve_on_receive` parameter's default)"
     } else {
-        ""
+        "; the ik_solver solving on its own thread, woken by the DDS thread that receives \
+         each message (`--solve-on-node-thread`: its `solve_on_receive` false)"
     };
     let measured = format!(
         "Measured {} on {}; release build{bound}{latency}{realtime}{on_receive}{in_reader}; ros2-client {}, RustDDS {}{}.",

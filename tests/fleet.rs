@@ -601,6 +601,10 @@ fn the_ik_solver_answers_every_target_alike_on_its_own_thread_or_on_the_receivin
     let on_thread = peer("ik", 225);
     assert_ik_answered_every_target(&on_thread, "the node's thread");
     assert!(!rosout_has(&on_thread, "ik_solver", &["on the DDS thread"]));
+    assert!(
+        rosout_has(&on_thread, "ik_solver", &["on the node's thread"]),
+        "the node did not say it solves on its own thread"
+    );
     let on_receive = peer("ik_on_receive", 226);
     assert_ik_answered_every_target(&on_receive, "solve_on_receive");
     assert!(

@@ -312,8 +312,9 @@ def scenario_walk(bin_dir, params):
 def scenario_ik(bin_dir, params, on_receive=False):
     """The ik_solver alone, fed by the peer: warm-up targets until its joint commands come
     back, then 300 targets at about 100 Hz (stamps 10 s + k ns), the 150th with a NaN left
-    ankle x. `on_receive`: the node solves on its DDS thread (`solve_on_receive`)."""
-    extra = {"ik_solver": ["-p", "solve_on_receive:=true"]} if on_receive else None
+    ankle x. `on_receive`: the node solves on its DDS thread (`solve_on_receive`, its
+    default), or on its own thread; given either way."""
+    extra = {"ik_solver": ["-p", f"solve_on_receive:={'true' if on_receive else 'false'}"]}
     procs = start_nodes(bin_dir, params, extra=extra, only=["ik_solver"])
     peer = Peer()
     pub = peer.node.create_publisher(AnkleTargets, "/gait/ankle_targets",

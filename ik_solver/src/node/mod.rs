@@ -8,9 +8,10 @@
 //! or a joint limit is clamped and reported (at most once a second per kind).
 //!
 //! Parameters: `robot_description_file` (URDF path; empty for the built-in robot),
-//! `leg_map_file`, `solve_on_receive` (bool, default false: each message is solved and its
+//! `leg_map_file`, `solve_on_receive` (bool, default true: each message is solved and its
 //! command published on the DDS thread that received it, one thread wake-up a message
-//! instead of two; no effect composed with other nodes in one process). All read at start.
+//! instead of two; false: that thread wakes the node's own thread to do it, as an rclcpp
+//! executor would; no effect composed with other nodes in one process). All read at start.
 
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -106,7 +107,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     )?;
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
     let leg_map_file = setup.str_param(LEG_MAP_PARAM, "")?;
-    let solve_on_receive = setup.bool_param(SOLVE_ON_RECEIVE_PARAM, false)?;
+    let solve_on_receive = setup.bool_param(SOLVE_ON_RECEIVE_PARAM, true)?;
     let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
     // The leg joints, left then right, hip to foot.
     let (names, dofs): (Vec<String>, Vec<usize>) = model
@@ -146,7 +147,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         model.robot().name(),
         names.len(),
         match (solve_on_receive, composed) {
-            (false, _) => "",
+            (false, _) => " on the node's thread (solve_on_receive false)",
             (true, false) => " on the DDS thread that receives each message",
             (true, true) => " (solve_on_receive: no effect composed, messages come in-process)",
         }

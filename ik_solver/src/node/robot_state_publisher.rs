@@ -13,9 +13,9 @@
 //!
 //! Parameters: `robot_description_file` (URDF path; empty for the built-in robot),
 //! `frame_prefix` (put before every link name in the frames, e.g. `robot1/`; default empty),
-//! `publish_on_receive` (bool, default false: each joint state's frames are computed and
+//! `publish_on_receive` (bool, default true: each joint state's frames are computed and
 //! published on the DDS thread that received it, one thread wake-up a message instead of
-//! two). All read at start.
+//! two; false: that thread wakes the node's own thread to do it). All read at start.
 
 use std::process::ExitCode;
 
@@ -101,7 +101,7 @@ async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     )?;
     let robot_file = setup.str_param(ROBOT_PARAM, "")?;
     let prefix = setup.str_param(PREFIX_PARAM, "")?;
-    let on_receive = setup.bool_param(ON_RECEIVE_PARAM, false)? && !host.is_composed();
+    let on_receive = setup.bool_param(ON_RECEIVE_PARAM, true)? && !host.is_composed();
     let urdf = if robot_file.is_empty() {
         ik_solver::DEFAULT_URDF.to_owned()
     } else {
@@ -150,7 +150,7 @@ async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         if on_receive {
             ", frames published on the DDS thread that receives each joint state"
         } else {
-            ""
+            ", frames published on the node's thread"
         }
     ));
     let frames = Frames {
