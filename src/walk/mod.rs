@@ -103,6 +103,9 @@ pub const ESTOP_HOLD_S: f64 = 2.5;
 /// streams the report measures to get there too; then it measures what came, and says so.
 const STREAMS_GRACE: Duration = Duration::from_secs(2);
 
+/// How often (wall time) the recording asks whether a process of the fleet has exited.
+const FLEET_LOOK_EVERY: Duration = Duration::from_millis(100);
+
 /// The walk's outcome: the report and the files written.
 #[derive(Debug)]
 pub struct WalkOutcome {
@@ -783,6 +786,9 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
             + o.stop_at_s().len() as f64 * (ESTOP_HOLD_S + 5.0);
         // Deadlines and the fleet are looked at, without a `/clock`, every 200 ms.
         let mut bound = node_runtime::WaitBound::every(Duration::from_millis(200));
+        // The fleet's processes, every `FLEET_LOOK_EVERY` rather than at every `/clock`
+        // (a system call per process: five a tick, where ticks come every half millisecond).
+        let mut fleet_looked_at = Instant::now();
         loop {
             let got = bound.within(clock.async_take()).await;
             if let Some(Ok((c, _))) = got {
@@ -815,8 +821,11 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
                     .publish(command.clone())
                     .map_err(|e| anyhow::anyhow!("publish walk_command: {e:?}"))?;
             }
-            if let Some(why) = fleet.failed() {
-                anyhow::bail!("{why}");
+            if fleet_looked_at.elapsed() >= FLEET_LOOK_EVERY {
+                fleet_looked_at = Instant::now();
+                if let Some(why) = fleet.failed() {
+                    anyhow::bail!("{why}");
+                }
             }
             let t = rec.clock_ns as f64 * 1e-9;
             if t - last_progress_s >= 2.0 {
