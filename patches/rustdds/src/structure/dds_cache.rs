@@ -241,9 +241,28 @@ impl TopicCache {
     }
   }
 
-  // The Writer is gone, so samples it never completed are no longer awaited.
+  // The Writer is gone, so samples it never completed are no longer awaited:
+  // give up on them and hand over every sample of it the cache holds. Those
+  // arrived complete (a Writer that waited for acknowledgments before leaving,
+  // e.g. a command-line tool that publishes once and exits, counts on them
+  // being read), so they stay readable until the Reader takes them or
+  // collection evicts them. Removing the marker instead would hide them: a
+  // Writer without one has nothing received reliably.
   pub fn forget_reliable_writer(&mut self, writer: GUID) {
-    self.received_reliably_before.remove(&writer);
+    let newest_present = self
+      .sequence_numbers
+      .get(&writer)
+      .and_then(|sn_map| sn_map.keys().next_back().copied());
+    match newest_present {
+      // Nothing of it is left to read: nothing to keep a marker for.
+      None => {
+        self.received_reliably_before.remove(&writer);
+      }
+      Some(newest) => {
+        let marker = self.received_reliably_before.entry(writer).or_default();
+        *marker = max(*marker, newest.plus_1());
+      }
+    }
   }
 
   // The oldest change that a Reliable DataReader cannot yet take, because an
@@ -802,6 +821,45 @@ mod tests {
       SequenceNumber::new(201)
     );
     assert!(topic_cache.changes.len() <= topic_cache.max_keep_samples as usize + 1);
+  }
+
+  // A Writer that leaves (its participant disposed, or lost) after its
+  // samples were received and acknowledged, but before the DataReader took
+  // them: they are still read, in order, and a sample it never completed no
+  // longer holds back the ones after it.
+  #[test]
+  fn samples_of_a_writer_that_left_are_still_read() {
+    let mut topic_cache = keep_all_topic_cache();
+    let writer = user_writer();
+    let sample = |sn| {
+      CacheChange::new(
+        writer,
+        SequenceNumber::new(sn),
+        WriteOptions::default(),
+        DDSData::new(SerializedPayload::default()),
+      )
+    };
+    let readable = |topic_cache: &TopicCache| -> Vec<i64> {
+      topic_cache
+        .get_changes_in_range_reliable(&BTreeMap::new())
+        .map(|(_, cc)| i64::from(cc.sequence_number))
+        .collect()
+    };
+    // 1 and 2 received; 3 missing, 4 received.
+    for sn in [1, 2, 4] {
+      topic_cache.add_change(&Timestamp::now(), sample(sn));
+    }
+    topic_cache.mark_reliably_received_before(writer, SequenceNumber::new(3));
+    assert_eq!(readable(&topic_cache), [1, 2]);
+
+    topic_cache.forget_reliable_writer(writer);
+    assert_eq!(readable(&topic_cache), [1, 2, 4]);
+
+    // A Writer that left nothing unread leaves no marker behind.
+    let other = GUID::new(GuidPrefix::new(&[8; 12]), writer.entity_id);
+    topic_cache.mark_reliably_received_before(other, SequenceNumber::new(5));
+    topic_cache.forget_reliable_writer(other);
+    assert!(!topic_cache.received_reliably_before.contains_key(&other));
   }
 
   #[test]
