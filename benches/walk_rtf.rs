@@ -5,10 +5,11 @@
 //!    10 ms tick, plus the walk measures, no middleware;
 //! 3. `biped walk`: the whole fleet (gait_planner, ik_solver, joint_bridge, sim_bridge as
 //!    separate processes, DDS over loopback) in lockstep, simulated time only advancing once
-//!    every node has answered each 10 ms tick; its own report's figure (from the first
-//!    `/clock` on: process start-up and discovery excluded);
-//! 4. `biped walk --plan-ahead`: the four processes with the gait planner a tick ahead of
-//!    `/clock` (the tick waits for the joint bridge's hop only; the same walk);
+//!    the joint bridge has answered each 10 ms tick (the gait planner a tick ahead of
+//!    `/clock`, the default); its own report's figure (from the first `/clock` on: process
+//!    start-up and discovery excluded);
+//! 4. `biped walk --plan-on-time`: the four processes with the gait planner on time (the
+//!    tick waits for the planner, the IK and the joint bridge; the same walk);
 //! 5. `biped walk --composed`: the same with gait_planner, ik_solver, joint_bridge and
 //!    sim_bridge in one process (`biped compose`, in-process delivery between them).
 //!
@@ -146,10 +147,13 @@ fn main() -> ExitCode {
     // (variant, its runs' reports).
     let mut fleets: Vec<(&str, Vec<serde_json::Value>)> = Vec::new();
     for (what, extra) in [
-        ("`biped walk`: the fleet over DDS in lockstep", &[][..]),
         (
-            "`biped walk --plan-ahead`: the same, the planner a tick ahead of `/clock`",
-            &["--plan-ahead"][..],
+            "`biped walk`: the fleet over DDS in lockstep, the planner a tick ahead",
+            &[][..],
+        ),
+        (
+            "`biped walk --plan-on-time`: the same, the planner on time",
+            &["--plan-on-time"][..],
         ),
         (
             "`biped walk --composed`: the four nodes in one process, in lockstep",
@@ -263,7 +267,7 @@ fn main() -> ExitCode {
         "\nEach process's CPU time and context switches a tick (`work_per_tick.by_process`), \
          median of {RUNS} runs:\n"
     );
-    println!("| process | four processes | planner ahead | composed |");
+    println!("| process | four processes (ahead) | planner on time | composed |");
     println!("|---|---:|---:|---:|");
     for name in &names {
         let cell = |reports: &[serde_json::Value]| {

@@ -169,13 +169,18 @@ enum Command {
         /// DDS as without it.
         #[arg(long)]
         composed: bool,
-        /// The gait planner a tick ahead of `/clock` (its `plan_ahead` parameter): tick k's
-        /// targets go out at `/clock` k - 1 and the joint bridge holds them until tick k, so
-        /// the lockstep tick waits for one hop instead of three. The same walk (the joints
-        /// get the same targets at the same ticks); the planner hears commands and the
-        /// bridge's hold a tick earlier in its plan.
-        #[arg(long)]
+        /// The gait planner a tick ahead of `/clock` (its `plan_ahead` parameter), over a
+        /// `--params` file that says otherwise. The default already (`config/sim.yaml`):
+        /// tick k's targets go out at `/clock` k - 1 and the joint bridge holds them until
+        /// tick k, so the lockstep tick waits for one hop instead of three. The same walk
+        /// (the joints get the same targets at the same ticks); the planner hears commands
+        /// and the bridge's hold a tick earlier in its plan.
+        #[arg(long, conflicts_with = "plan_on_time")]
         plan_ahead: bool,
+        /// The gait planner on time (`plan_ahead` false): tick k's targets go out at `/clock`
+        /// k, and the lockstep tick waits for the planner, the IK and the joint bridge.
+        #[arg(long)]
+        plan_on_time: bool,
     },
     /// Record topics into a rosbag2 bag (Jazzy format, MCAP or sqlite3) until Ctrl-C,
     /// SIGTERM or --duration.
@@ -493,6 +498,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             pause_at,
             composed,
             plan_ahead,
+            plan_on_time,
         } => {
             if !(settle.is_finite() && (0.0..=60.0).contains(&settle)) {
                 anyhow::bail!("--settle {settle}: must be within [0, 60] s");
@@ -524,7 +530,11 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 estop_at_s,
                 pause_at_s,
                 composed,
-                plan_ahead,
+                plan_ahead: if plan_on_time {
+                    Some(false)
+                } else {
+                    plan_ahead.then_some(true)
+                },
             })?;
             let r = &outcome.report;
             let m = &r.measured;

@@ -72,8 +72,9 @@ pub struct WalkOptions {
     /// Run gait_planner, ik_solver, joint_bridge and sim_bridge in one process (`biped
     /// compose`); the simulator starts paused and is released once the walk command is in.
     pub composed: bool,
-    /// The gait planner a tick ahead of `/clock` (its `plan_ahead` parameter).
-    pub plan_ahead: bool,
+    /// The gait planner's `plan_ahead` (a tick ahead of `/clock`) set over any parameter
+    /// file; `None` leaves it to the files (`config/sim.yaml`: true).
+    pub plan_ahead: Option<bool>,
 }
 
 impl WalkOptions {
@@ -494,8 +495,8 @@ pub fn walk(o: &WalkOptions) -> anyhow::Result<WalkOutcome> {
         // until the walk command is in (step 1 below releases it).
         node_params.push(("sim_bridge".into(), "start_paused:=true".into()));
     }
-    if o.plan_ahead {
-        node_params.push(("gait_planner".into(), "plan_ahead:=true".into()));
+    if let Some(ahead) = o.plan_ahead {
+        node_params.push(("gait_planner".into(), format!("plan_ahead:={ahead}")));
     }
     if !o.stop_at_s().is_empty() {
         // The stops hold simulated time while their calls are out ([`StopDriver`]).
