@@ -1533,7 +1533,7 @@ fn clock_and_phase_stamps(v: &Value) -> (Vec<i64>, Vec<i64>) {
 /// as a lockstep simulator says a tick while it waits, gets the phase of the tick after it,
 /// a time no `/clock` carried. Without `use_sim_time` the parameter is refused, naming it
 /// and what it needs (on the monotonic clock a command is taken when it comes: there is no
-/// tick to be ahead of).
+/// tick to be ahead of), and how to run without it (`config/sim.yaml` sets it).
 #[test]
 fn a_planner_ahead_sends_each_tick_one_period_before_its_clock() {
     let v = peer_with_params(
@@ -1566,7 +1566,8 @@ fn a_planner_ahead_sends_each_tick_one_period_before_its_clock() {
             .args(["--ros-args", "-p", "plan_ahead:=true"]),
     );
     assert!(
-        err.contains("`plan_ahead` = true needs `use_sim_time` = true"),
+        err.contains("`plan_ahead` = true needs `use_sim_time` = true")
+            && err.contains("set `plan_ahead: false`"),
         "{err}"
     );
 }

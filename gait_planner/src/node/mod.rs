@@ -568,7 +568,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let use_sim_time = setup.use_sim_time();
     if plan_ahead && !use_sim_time {
         anyhow::bail!(
-            "parameter `{AHEAD_PARAM}` = true needs `use_sim_time` = true: a tick ahead of a lockstep simulator's `/clock`; on the monotonic clock the joint bridge takes each command when it comes"
+            "parameter `{AHEAD_PARAM}` = true needs `use_sim_time` = true: a tick ahead of a lockstep simulator's `/clock`; on the monotonic clock the joint bridge takes each command when it comes, so set `{AHEAD_PARAM}: false` there (`config/sim.yaml`, the defaults of `biped walk` and `biped launch --backend sim`, sets it true)"
         );
     }
     let model = BipedModel::from_parameter_files(&robot_file, &leg_map_file)?;
