@@ -169,12 +169,12 @@ enum Command {
         /// DDS as without it.
         #[arg(long)]
         composed: bool,
-        /// The gait planner a tick ahead of `/clock` (its `plan_ahead` parameter), over a
-        /// `--params` file that says otherwise. The default already (`config/sim.yaml`):
-        /// tick k's targets go out at `/clock` k - 1 and the joint bridge holds them until
-        /// tick k, so the lockstep tick waits for one hop instead of three. The same walk
-        /// (the joints get the same targets at the same ticks); the planner hears commands
-        /// and the bridge's hold a tick earlier in its plan.
+        /// The gait planner a tick ahead of `/clock` (its `plan_ahead` parameter), even over
+        /// a `--params` file that says otherwise; without a flag it is ahead too
+        /// (`config/sim.yaml`): tick k's targets go out at `/clock` k - 1 and the joint bridge
+        /// holds them until tick k, so the lockstep tick waits for one hop instead of three.
+        /// The same walk (the joints get the same targets at the same ticks); the planner
+        /// hears commands and the bridge's hold a tick earlier in its plan.
         #[arg(long, conflicts_with = "plan_on_time")]
         plan_ahead: bool,
         /// The gait planner on time (`plan_ahead` false): tick k's targets go out at `/clock`
