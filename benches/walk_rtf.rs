@@ -26,6 +26,8 @@
 //! `cpu_affinity`: `biped compose` refuses it).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
+mod common;
+
 use std::path::PathBuf;
 use std::process::{Command, ExitCode};
 use std::time::Instant;
@@ -202,8 +204,10 @@ fn main() -> ExitCode {
         (None, None) => String::new(),
     };
     println!(
-        "{} steps ({plan_s:.1} s of walk), median of {RUNS} runs, 1 kHz physics, 100 Hz \
-         control{realtime}\n",
+        "Measured {} on {}.\n\n{} steps ({plan_s:.1} s of walk), median of {RUNS} runs, 1 kHz \
+         physics, 100 Hz control{realtime}\n",
+        common::today(),
+        common::machine(),
         STEPS
     );
     println!("| what runs | real-time factor | wall time per 10 ms tick | of bare physics |");

@@ -149,8 +149,9 @@ pub fn machine() -> String {
         .map(|kb| format!("{:.0} GiB", kb / 1024.0 / 1024.0))
         .unwrap_or_else(|| "?".into());
     format!(
-        "{model}, {cpus} CPUs (`nproc`), {mem_gib}, Linux {}",
-        kernel.trim()
+        "{model}, {cpus} CPUs (`nproc`), {mem_gib}, Linux {}; {}",
+        kernel.trim(),
+        node_runtime::cpu_latency::idle_cpus(Path::new("/sys"))
     )
 }
 

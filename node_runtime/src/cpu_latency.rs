@@ -15,6 +15,7 @@
 
 use std::fs::{File, OpenOptions};
 use std::io::{Read as _, Write as _};
+use std::path::Path;
 
 use serde_norway::Value;
 
@@ -86,6 +87,41 @@ pub fn current_limit_us() -> std::io::Result<i32> {
     Ok(i32::from_ne_bytes(bytes))
 }
 
+/// How the machine's idle CPUs wait, which sets what a message costs that wakes a thread on
+/// an idle CPU (BENCHMARKS.md, "Where the default four-process tick waits"): the cpuidle driver, its
+/// governor and idle states, and with the haltpoll governor (a KVM guest's) how long an idle
+/// vCPU polls before it halts (`guest_halt_poll_ns`; 0: it halts at once, and the host
+/// must wake it). `sys` is the sysfs root.
+pub fn idle_cpus(sys: &Path) -> String {
+    let read = |p: &str| {
+        std::fs::read_to_string(sys.join(p))
+            .ok()
+            .map(|s| s.trim().to_owned())
+            .filter(|s| !s.is_empty())
+    };
+    let Some(driver) = read("devices/system/cpu/cpuidle/current_driver") else {
+        return "idle CPUs: no cpuidle driver".into();
+    };
+    let governor = read("devices/system/cpu/cpuidle/current_governor")
+        .or_else(|| read("devices/system/cpu/cpuidle/current_governor_ro"))
+        .unwrap_or_else(|| "?".into());
+    let states: Vec<String> = (0..16)
+        .map_while(|i| read(&format!("devices/system/cpu/cpu0/cpuidle/state{i}/name")))
+        .collect();
+    let poll = match read("module/haltpoll/parameters/guest_halt_poll_ns") {
+        Some(ns) if governor == "haltpoll" => format!(", polling {ns} ns before halting"),
+        _ => String::new(),
+    };
+    format!(
+        "idle CPUs: cpuidle {driver} (governor {governor}{poll}; states {})",
+        if states.is_empty() {
+            "?".into()
+        } else {
+            states.join(" ")
+        }
+    )
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -151,5 +187,68 @@ mod tests {
         assert!(current_limit_us().unwrap() <= 3);
         drop(request);
         assert!(current_limit_us().unwrap() > 3);
+    }
+
+    /// A sysfs tree under a fresh folder with `files` (path, contents).
+    fn sys(name: &str, files: &[(&str, &str)]) -> std::path::PathBuf {
+        let root = std::env::temp_dir().join(format!("biped-idle-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        for (path, text) in files {
+            let p = root.join(path);
+            if let Some(dir) = p.parent() {
+                std::fs::create_dir_all(dir).unwrap();
+            }
+            std::fs::write(p, text).unwrap();
+        }
+        root
+    }
+
+    #[test]
+    fn a_kvm_guest_says_how_long_its_idle_vcpus_poll() {
+        let root = sys(
+            "haltpoll",
+            &[
+                ("devices/system/cpu/cpuidle/current_driver", "haltpoll\n"),
+                (
+                    "devices/system/cpu/cpuidle/current_governor_ro",
+                    "haltpoll\n",
+                ),
+                ("devices/system/cpu/cpu0/cpuidle/state0/name", "POLL\n"),
+                (
+                    "devices/system/cpu/cpu0/cpuidle/state1/name",
+                    "haltpoll idle\n",
+                ),
+                ("module/haltpoll/parameters/guest_halt_poll_ns", "0\n"),
+            ],
+        );
+        assert_eq!(
+            idle_cpus(&root),
+            "idle CPUs: cpuidle haltpoll (governor haltpoll, polling 0 ns before halting; states POLL haltpoll idle)"
+        );
+        let _ = std::fs::remove_dir_all(root);
+    }
+
+    #[test]
+    fn a_machine_without_cpuidle_or_haltpoll_says_so() {
+        let root = sys(
+            "menu",
+            &[
+                ("devices/system/cpu/cpuidle/current_driver", "intel_idle\n"),
+                ("devices/system/cpu/cpuidle/current_governor", "menu\n"),
+                ("devices/system/cpu/cpu0/cpuidle/state0/name", "POLL\n"),
+                ("devices/system/cpu/cpu0/cpuidle/state1/name", "C1\n"),
+                ("devices/system/cpu/cpu0/cpuidle/state2/name", "C6\n"),
+                // Loaded but not the governor: no poll window said.
+                ("module/haltpoll/parameters/guest_halt_poll_ns", "200000\n"),
+            ],
+        );
+        assert_eq!(
+            idle_cpus(&root),
+            "idle CPUs: cpuidle intel_idle (governor menu; states POLL C1 C6)"
+        );
+        let none = sys("none", &[("devices/system/cpu/online", "0-1\n")]);
+        assert_eq!(idle_cpus(&none), "idle CPUs: no cpuidle driver");
+        let _ = std::fs::remove_dir_all(root);
+        let _ = std::fs::remove_dir_all(none);
     }
 }
