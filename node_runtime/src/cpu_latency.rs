@@ -88,10 +88,11 @@ pub fn current_limit_us() -> std::io::Result<i32> {
 }
 
 /// How the machine's idle CPUs wait, which sets what a message costs that wakes a thread on
-/// an idle CPU (BENCHMARKS.md, "Where the default four-process tick waits"): the cpuidle driver, its
-/// governor and idle states, and with the haltpoll governor (a KVM guest's) how long an idle
-/// vCPU polls before it halts (`guest_halt_poll_ns`; 0: it halts at once, and the host
-/// must wake it). `sys` is the sysfs root.
+/// an idle CPU (BENCHMARKS.md, "Where the default four-process tick waits"): the cpuidle
+/// driver, its governor and idle states, and with the haltpoll governor (a KVM guest's) how
+/// long an idle vCPU polls before it halts (`guest_halt_poll_ns`; 0: it halts at once, and
+/// the host must wake it). `sys` is the sysfs root (`/sys`). One line, for a benchmark's
+/// machine line; what cannot be read is left out or `?`.
 pub fn idle_cpus(sys: &Path) -> String {
     let read = |p: &str| {
         std::fs::read_to_string(sys.join(p))

@@ -18,7 +18,8 @@
 //!   (one thread wake-up a message instead of two);
 //! - [`affinity`]: the `cpu_affinity` parameter, binding a node's process to CPUs;
 //! - [`cpu_latency`]: the `cpu_dma_latency_us` parameter, a CPU latency request held while
-//!   the node's process runs;
+//!   the node's process runs, and how the machine's idle CPUs wait
+//!   ([`cpu_latency::idle_cpus`], which the benches print);
 //! - [`priority`]: the `thread_priority` parameter, the node's process under real-time
 //!   scheduling (`SCHED_FIFO`);
 //! - [`wait`]: how a node's thread waits: parked on a futex ([`wait::block_on`]), its
