@@ -47,16 +47,16 @@ mod common;
 
 use std::collections::HashSet;
 use std::fmt::Write as _;
-use std::io::{BufRead as _, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitCode, Stdio};
+use std::process::{Command, ExitCode};
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, mpsc};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context as _, anyhow, bail};
 use common::{
-    bin_dir, check_only_loopback, lock_version, machine, machine_cpu, proc_cpu_time, warn_if_stale,
+    Proc, bin_dir, check_only_loopback, lock_version, machine, machine_cpu, proc_cpu_time,
+    warn_if_stale,
 };
 use serde_json::{Value, json};
 
@@ -295,87 +295,6 @@ fn make_bag(tools: &Tools, rate_hz: u32, n: usize) -> anyhow::Result<PathBuf> {
         bail!("bag_make.py: {}", String::from_utf8_lossy(&out.stderr));
     }
     Ok(bag)
-}
-
-/// A child process with its stderr in a file; killed when dropped.
-struct Proc {
-    child: Child,
-    what: String,
-    stderr_path: PathBuf,
-}
-
-impl Proc {
-    fn spawn(cmd: &mut Command, what: &str, scratch: &Path) -> anyhow::Result<Self> {
-        let stderr_path = scratch.join(format!("{what}.stderr"));
-        let child = cmd
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(std::fs::File::create(&stderr_path)?)
-            .spawn()
-            .with_context(|| format!("starting the {what}"))?;
-        Ok(Self {
-            child,
-            what: what.to_owned(),
-            stderr_path,
-        })
-    }
-    fn pid(&self) -> u32 {
-        self.child.id()
-    }
-    /// Its stdout, line by line, on a channel (read by a thread: the pipe never fills).
-    fn lines(&mut self) -> mpsc::Receiver<String> {
-        let (tx, rx) = mpsc::channel();
-        if let Some(out) = self.child.stdout.take() {
-            std::thread::spawn(move || {
-                for line in BufReader::new(out).lines().map_while(Result::ok) {
-                    if tx.send(line).is_err() {
-                        break;
-                    }
-                }
-            });
-        }
-        rx
-    }
-    /// Waits for it to exit, at most `limit`; None if it is still running.
-    fn wait(&mut self, limit: Duration) -> Option<std::process::ExitStatus> {
-        let end = Instant::now() + limit;
-        loop {
-            if let Ok(Some(s)) = self.child.try_wait() {
-                return Some(s);
-            }
-            if Instant::now() >= end {
-                return None;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-    /// SIGINT (as Ctrl-C), then killed if still there after 10 s.
-    fn interrupt(&mut self) {
-        let pid = nix::unistd::Pid::from_raw(self.pid() as i32);
-        let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT);
-        if self.wait(Duration::from_secs(10)).is_none() {
-            let _ = self.child.kill();
-            let _ = self.child.wait();
-        }
-    }
-    fn stderr_tail(&self) -> String {
-        let s = std::fs::read_to_string(&self.stderr_path).unwrap_or_default();
-        let lines: Vec<&str> = s.lines().collect();
-        format!(
-            "{}'s stderr ends:\n{}",
-            self.what,
-            lines[lines.len().saturating_sub(20)..].join("\n")
-        )
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        if let Ok(None) = self.child.try_wait() {
-            let _ = self.child.kill();
-            let _ = self.child.wait();
-        }
-    }
 }
 
 fn wall_ns() -> i64 {

@@ -39,8 +39,9 @@
 //! said so before it was the default, is still taken),
 //! `--in-reader` (each command time-stamped on the DDS thread that receives it, in its
 //! reader, instead of after that thread has woken the subscriber's: where a `joint_bridge`
-//! driving hardware finds it, since it takes commands on its own control tick and never
-//! waits for one),
+//! driving hardware with `tick_on_command` false finds it, since it then takes commands on
+//! its own control tick and never waits for one; by default a command wakes its thread as it
+//! comes, as without this option),
 //! `--dump DIR` (each run's latencies, one CSV per relay and rate, in the order sent).
 //! A benchmark, not a test: it is not part of `cargo test` or `scripts/test`.
 
@@ -963,8 +964,9 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
          at the rate, with the send time in `header.stamp`, and subscribes to the joint \
          commands, whose stamp the relay copies. Latency = arrival in the subscriber (after \
          deserialisation) − stamp, on one clock; lost = sent − received, by stamp. \"At the \
-         joint bridge\" means in its DDS reader: the `joint_bridge` node takes commands on its \
-         own control tick, up to one period later."
+         joint bridge\" means in its DDS reader: the `joint_bridge` node ticks at each command \
+         as it comes (`tick_on_command`; with it false, at its own control tick, up to one \
+         period later: `cargo bench --bench bridge_tick`)."
             .to_owned(),
         "In the middle, either the real `ik_solver` node (release build) or an rclpy relay \
          (`benches/pipeline_relay.py`: the same topics and QoS, copies the header, the 10 leg \
@@ -1023,7 +1025,8 @@ fn section(opts: &Opts, root: &Path, results: &[RunResult], versions: &[String])
     };
     let in_reader = if opts.in_reader {
         "; each command time-stamped in the bench's DDS reader, on the thread that received \
-         it (`--in-reader`: where a hardware `joint_bridge` takes it at its tick), not after \
+         it (`--in-reader`: where a hardware `joint_bridge` with `tick_on_command` false takes \
+         it at its tick), not after \
          a thread of the bench woke for it"
     } else {
         ""

@@ -614,6 +614,49 @@ fn the_ik_solver_answers_every_target_alike_on_its_own_thread_or_on_the_receivin
 }
 
 #[test]
+fn a_joint_command_ticks_the_bridge_as_it_comes_not_at_its_next_own_tick() {
+    // The bridge at 1 Hz, commands 0.6 s apart: each must be answered by a joint_states
+    // stamped after it was sent and before the next was sent. The first command may be held
+    // for half a period after the bridge's own last tick (at most 0.5 s): from the second on,
+    // the ticks are the commands'. On its own 1 Hz ticks alone, nine windows of 0.6 s would
+    // all hold a tick with a chance of 0.6^9, 1 %.
+    let v = peer("bridge_ticks", 212);
+    assert_eq!(v["matched"], true, "{v}");
+    assert_eq!(v["flowing"], true, "no joint_states from the bridge: {v}");
+    for (name, exit) in v["exits"].as_object().unwrap() {
+        assert_eq!(exit["returncode"], 0, "{name} did not exit cleanly: {exit}");
+    }
+    assert!(
+        rosout_has(&v, "joint_bridge", &["at each command as it comes"]),
+        "the bridge did not say it ticks at each command"
+    );
+    let times = |key: &str| -> Vec<f64> {
+        v[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let (sent, states) = (times("sent"), times("states"));
+    assert_eq!(sent.len(), 10);
+    for (k, w) in sent.windows(2).enumerate().skip(1) {
+        let answered = states.iter().filter(|&&t| t >= w[0] && t < w[1]).count();
+        assert!(
+            answered >= 1,
+            "command {k} (sent at {:.3} s) had no tick before the next was sent {:.3} s later; joint_states stamps {:?}",
+            w[0],
+            w[1] - w[0],
+            states
+                .iter()
+                .filter(|&&t| t > w[0] - 1.5 && t < w[1] + 1.5)
+                .map(|t| format!("{:+.3}", t - w[0]))
+                .collect::<Vec<_>>()
+        );
+    }
+}
+
+#[test]
 fn killing_ik_solver_mid_walk_makes_the_bridge_hold_the_pose() {
     let v = peer("watchdog", 62);
     assert_walk_moved(&v);

@@ -2,9 +2,11 @@
 //! leaves the machine), finding the workspace's binaries, and reading /proc and Cargo.lock.
 #![allow(dead_code)]
 
+use std::io::{BufRead as _, BufReader};
 use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::time::{Duration, SystemTime};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant, SystemTime};
 
 use anyhow::{Context as _, anyhow, bail};
 
@@ -244,4 +246,86 @@ pub fn count_args(default: usize) -> anyhow::Result<CountArgs> {
         }
     }
     Ok(CountArgs { n, latency })
+}
+
+/// A child process of a bench (a node, a recorder, a relay) with its stderr in a file;
+/// killed when dropped.
+pub struct Proc {
+    child: Child,
+    what: String,
+    stderr_path: PathBuf,
+}
+
+impl Proc {
+    pub fn spawn(cmd: &mut Command, what: &str, scratch: &Path) -> anyhow::Result<Self> {
+        let stderr_path = scratch.join(format!("{what}.stderr"));
+        let child = cmd
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(&stderr_path)?)
+            .spawn()
+            .with_context(|| format!("starting the {what}"))?;
+        Ok(Self {
+            child,
+            what: what.to_owned(),
+            stderr_path,
+        })
+    }
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+    /// Its stdout, line by line, on a channel (read by a thread: the pipe never fills).
+    pub fn lines(&mut self) -> mpsc::Receiver<String> {
+        let (tx, rx) = mpsc::channel();
+        if let Some(out) = self.child.stdout.take() {
+            std::thread::spawn(move || {
+                for line in BufReader::new(out).lines().map_while(Result::ok) {
+                    if tx.send(line).is_err() {
+                        break;
+                    }
+                }
+            });
+        }
+        rx
+    }
+    /// Waits for it to exit, at most `limit`; None if it is still running.
+    pub fn wait(&mut self, limit: Duration) -> Option<std::process::ExitStatus> {
+        let end = Instant::now() + limit;
+        loop {
+            if let Ok(Some(s)) = self.child.try_wait() {
+                return Some(s);
+            }
+            if Instant::now() >= end {
+                return None;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+    /// SIGINT (as Ctrl-C), then killed if still there after 10 s.
+    pub fn interrupt(&mut self) {
+        let pid = nix::unistd::Pid::from_raw(self.pid() as i32);
+        let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT);
+        if self.wait(Duration::from_secs(10)).is_none() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+    pub fn stderr_tail(&self) -> String {
+        let s = std::fs::read_to_string(&self.stderr_path).unwrap_or_default();
+        let lines: Vec<&str> = s.lines().collect();
+        format!(
+            "{}'s stderr ends:\n{}",
+            self.what,
+            lines[lines.len().saturating_sub(20)..].join("\n")
+        )
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
 }

@@ -21,6 +21,7 @@ mod limits;
 pub mod managed;
 mod mock;
 pub mod motion;
+pub mod pacing;
 pub mod serial;
 
 /// The ROS 2 node (feature `node`): [`node::run`] alone in its process or composed.
@@ -34,3 +35,4 @@ pub use bridge::{
 pub use compensation::{CompensationError, GYRO_MAX_AGE_S, GyroDamping, SagCompensation};
 pub use limits::JointSpec;
 pub use mock::MockBackend;
+pub use pacing::TickPacing;

@@ -4,7 +4,7 @@ Run inside a private network namespace (the Rust test does it). It starts the fl
 a ROS user would (`ros2 topic pub`, `ros2 param get/set`, kill a node, Ctrl-C the launcher)
 and prints what it saw as one JSON object on stdout. The assertions are the Rust test's.
 
-    python fleet_peer.py walk|ik|ik_on_receive|teleop|watchdog|launch|sim BIN_DIR [PARAMS_YAML]
+    python fleet_peer.py walk|ik|ik_on_receive|teleop|watchdog|bridge_ticks|launch|sim BIN_DIR [PARAMS_YAML]
 """
 
 import json
@@ -404,6 +404,39 @@ def start_flowing(bin_dir, params, extra=None):
         out["exits"] = stop_nodes(procs)
         print(json.dumps(out["exits"]), file=sys.stderr)
     return procs, peer, out
+
+
+def scenario_bridge_ticks(bin_dir, params):
+    """The joint_bridge alone (mock backend) at 1 Hz, fed by the peer: 10 joint commands
+    0.6 s apart. Records when each was sent (system clock, s) and the stamp of every
+    joint_states (the bridge's tick, the same clock). With `tick_on_command` (the default)
+    each command ticks the bridge as it comes; on its 1 Hz ticks alone a command would find a
+    tick within 0.6 s only 60 % of the time."""
+    extra = {"joint_bridge": ["-p", "backend:=mock", "-p", "rate_hz:=1.0", "-p", "watchdog_timeout_s:=5.0"]}
+    procs = start_nodes(bin_dir, params, extra=extra, only=["joint_bridge"])
+    peer = Peer()
+    pub = peer.node.create_publisher(JointState, "/joint_commands",
+                                     QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    out = {"matched": peer.wait_for_subscribers(pub)}
+    # Its joint_states reach us (its writer matched our reader): the joint names.
+    out["flowing"] = peer.spin(20.0, lambda: len(peer.states) >= 2)
+    if not out["flowing"]:
+        out["exits"] = stop_nodes(procs)
+        return out
+    names = peer.states[-1]["name"]
+    sent = []
+    for k in range(10):
+        m = JointState()
+        m.name = names
+        m.position = [0.001 * (k + 1)] * len(names)
+        sent.append(time.time())
+        m.header.stamp.sec, m.header.stamp.nanosec = int(sent[-1]), int((sent[-1] % 1) * 1e9)
+        pub.publish(m)
+        peer.spin(0.6)
+    peer.spin(0.5)
+    out.update(sent=sent, states=[x["t"] for x in peer.states], rosout=peer.rosout)
+    out["exits"] = stop_nodes(procs)
+    return out
 
 
 def scenario_watchdog(bin_dir, params):
@@ -1051,7 +1084,7 @@ def run_scenario(scenario, bin_dir, params):
     result = {"walk": scenario_walk, "ik": scenario_ik,
               "ik_on_receive": lambda b, p: scenario_ik(b, p, on_receive=True),
               "teleop": scenario_teleop, "teleop_sim": scenario_teleop_sim,
-              "watchdog": scenario_watchdog, "estop": scenario_estop, "pause": scenario_pause,
+              "watchdog": scenario_watchdog, "bridge_ticks": scenario_bridge_ticks, "estop": scenario_estop, "pause": scenario_pause,
               "lifecycle": scenario_lifecycle, "supervise": scenario_supervise, "clock": scenario_clock,
               "sim_kill": scenario_sim_kill, "discovery_off": scenario_discovery_off,
               "launch": scenario_launch,

@@ -7,7 +7,8 @@
 //! `joint_states` itself.
 //!
 //! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `backend`
-//! (`mock`, `sim` or `serial`), `rate_hz` (100), `watchdog_timeout_s` (0.25),
+//! (`mock`, `sim` or `serial`), `rate_hz` (100), `tick_on_command` (true: on the monotonic
+//! clock a command ticks the bridge as it comes, see below), `watchdog_timeout_s` (0.25),
 //! `watchdog_action` (`hold` or `limp`), `start_ramp_s` (the move from the measured pose to
 //! the first command, 2 s), `acceleration_limit_rad_s2` (every joint, 100),
 //! `default_velocity_rad_s` (joints the URDF leaves without a speed limit, 2), `max_tick_s`
@@ -39,6 +40,14 @@
 //! (diagnostic_msgs/msg/DiagnosticArray, once a second): the board's state and wire
 //! counters (timeouts, corrupted replies, reconnections, servo error bits).
 //!
+//! On the monotonic clock, with `tick_on_command` (the default), each command ticks the
+//! bridge as it comes (no sooner than half a period after the last tick), and without
+//! commands the bridge ticks by itself at `rate_hz` (from one and a half periods after the
+//! last command): a planner's command reaches the servos a DDS hop after it was sent, not
+//! up to a period later at the bridge's own tick, and two timers' phases never put two
+//! commands in one tick and none in the next ([`crate::pacing`]). `false`: the bridge ticks
+//! at `rate_hz` alone and takes what came at each tick.
+//!
 //! With `use_sim_time` the bridge ticks on `/clock`, in lockstep: tick t waits (up to
 //! `lockstep_wait_s` of wall time) for the `joint_commands` stamped t, so a lockstep simulator
 //! gets the answer to every tick computed from that tick's command. A command stamped for a
@@ -59,7 +68,7 @@ use std::time::{Duration, Instant};
 use crate::managed::ManagedState;
 use crate::{
     Backend, Backoff, BridgeConfig, Event, GyroDamping, JointBridge, JointSpec, Lifecycle,
-    MockBackend, Operator, SagCompensation, TimeoutAction,
+    MockBackend, Operator, SagCompensation, TickPacing, TimeoutAction,
 };
 use biped_msgs::msg::{
     BoolMsg, DiagnosticArray, DiagnosticStatus, Header, Imu, JointState, KeyValue,
@@ -79,8 +88,9 @@ use sim_link::{SimLink, SimLinkHandle};
 /// a few ticks for `~/holding` to reach it.
 const ESTOP_FOLLOW_S: f64 = 0.4;
 
-const PARAMS: [&str; 16] = [
+const PARAMS: [&str; 17] = [
     "autostart",
+    "tick_on_command",
     "robot_description_file",
     "leg_map_file",
     "backend",
@@ -119,6 +129,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let gyro_damping = setup.f64_param("gyro_damping_nm_s_per_rad", 0.0)?;
     let sim_wait_s = setup.f64_param("sim_wait_s", 10.0)?;
     let lockstep_wait_s = setup.f64_param("lockstep_wait_s", 0.5)?;
+    let tick_on_command = setup.bool_param("tick_on_command", true)?;
     if !(1.0..=1000.0).contains(&rate_hz) {
         anyhow::bail!("parameter `rate_hz` = {rate_hz} is out of range [1, 1000] Hz");
     }
@@ -239,6 +250,10 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
             ParameterValue::Double(gyro_damping),
         ),
         ("sim_wait_s".to_string(), ParameterValue::Double(sim_wait_s)),
+        (
+            "tick_on_command".to_string(),
+            ParameterValue::Boolean(tick_on_command),
+        ),
         (
             "lockstep_wait_s".to_string(),
             ParameterValue::Double(lockstep_wait_s),
@@ -406,7 +421,11 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let clock = if simulated {
         "on /clock (lockstep)"
     } else {
-        "on the monotonic clock"
+        if tick_on_command {
+            "on the monotonic clock, and at each command as it comes (tick_on_command)"
+        } else {
+            "on the monotonic clock (tick_on_command false)"
+        }
     };
     ros.info(&format!(
         "ready: backend {what} {status}, {} joints, {rate_hz} Hz {clock}, watchdog {timeout_s} s ({action_name}), start ramp {start_ramp_s} s, {compensation}; {states}",
@@ -525,9 +544,45 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     executor
         .run(async {
             if !simulated {
+                // On the monotonic clock: a tick at each command as it comes (with
+                // `tick_on_command`), and by itself at the rate without them (`TickPacing`).
+                let mut pacing = TickPacing::new(rate_hz, tick_on_command, 0.0);
+                let at = |s: f64| t0 + Duration::from_secs_f64(s.max(0.0));
                 while !stop.load(Ordering::SeqCst) && !lifecycle.finalized() {
-                    let _ = ticks.next().await;
+                    let own_due = at(pacing.own_tick_due_s());
+                    let command_from = pacing.command_tick_from_s();
+                    let command = async {
+                        if command_from == f64::INFINITY {
+                            return std::future::pending().await;
+                        }
+                        if command_from > t0.elapsed().as_secs_f64() {
+                            node_runtime::wait::sleep_until(at(command_from)).await;
+                        }
+                        match sub.async_take().await {
+                            Ok((m, _)) => Some(Some(m)),
+                            Err(e) => {
+                                ros.warn(&format!(
+                                    "joint_commands: unreadable message dropped: {e:?}"
+                                ));
+                                Some(None)
+                            }
+                        }
+                    }
+                    .or(async {
+                        node_runtime::wait::sleep_until(own_due).await;
+                        None
+                    })
+                    .await;
+                    let by_command = match command {
+                        // An unreadable message: wait again.
+                        Some(None) => continue,
+                        Some(Some(_)) => true,
+                        None => false,
+                    };
                     let t = t0.elapsed().as_secs_f64();
+                    if let Some(Some(cmd)) = command {
+                        report(bridge.command(t, &cmd.name, &cmd.position));
+                    }
                     while let Some(cmd) = ros.take_next(&sub, "joint_commands") {
                         report(bridge.command(t, &cmd.name, &cmd.position));
                     }
@@ -538,6 +593,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
                         }
                     }
                     do_tick(&mut bridge, t);
+                    pacing.ticked(t, by_command);
                 }
                 return;
             }
