@@ -15,6 +15,7 @@
 //! cargo build --release --workspace
 //! cargo bench --bench bridge_tick              # prints a Markdown table
 //! cargo bench --bench bridge_tick -- --n 2000  # commands per launch (default 1000)
+//! cargo bench --bench bridge_tick -- --sender-hz 50  # commands at another rate than the bridge's
 //! ```
 //!
 //! Nothing leaves the machine: the process re-executes itself in a private network namespace
@@ -38,7 +39,7 @@ use ros2_client::{NodeName, NodeOptions};
 
 /// Our own DDS domain (the namespace is private anyway).
 const DOMAIN_ID: &str = "94";
-/// The sender's and the bridge's rate.
+/// The bridge's rate, and the sender's unless `--sender-hz` says otherwise.
 const RATE_HZ: f64 = 100.0;
 /// Launches of each setting.
 const LAUNCHES: usize = 3;
@@ -60,10 +61,12 @@ struct Launch {
     latency_ms: Vec<f64>,
     /// Command periods with no, one, and two or more bridge ticks.
     ticks: [usize; 3],
+    /// Intervals between consecutive bridge ticks (ms), sorted.
+    tick_interval_ms: Vec<f64>,
 }
 
 fn run() -> anyhow::Result<()> {
-    let args = common::count_args(1000)?;
+    let (n, sender_hz) = parse_args()?;
     if !common::in_netns() {
         return common::reexec_in_netns(DOMAIN_ID);
     }
@@ -141,7 +144,7 @@ fn run() -> anyhow::Result<()> {
     for _ in 0..LAUNCHES {
         for on_command in [true, false] {
             let mut bridge = start_bridge(&exe, on_command, &scratch)?;
-            let r = measure(&publisher, &rx, start, args.n, on_command);
+            let r = measure(&publisher, &rx, start, n, sender_hz, on_command);
             bridge.interrupt();
             launches.push(r.with_context(|| {
                 format!("tick_on_command {on_command}; {}", bridge.stderr_tail())
@@ -154,19 +157,18 @@ fn run() -> anyhow::Result<()> {
 
     println!(
         "\nMeasured {} on {}; release build; `joint_bridge` (mock backend, rate_hz {RATE_HZ}), \
-         {} commands a launch at {RATE_HZ} Hz after 2 s of warm-up.\n",
+         {n} commands a launch at {sender_hz} Hz after 2 s of warm-up.\n",
         common::today(),
         common::machine(),
-        args.n
     );
     println!(
-        "| `tick_on_command` | launch | command → joint_states: median | p90 | p99 | max | command periods with no tick / one / two or more |"
+        "| `tick_on_command` | launch | command → joint_states: median | p90 | p99 | max | command periods with no tick / one / two or more | between ticks: p10 / p90 |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
     for (i, l) in launches.iter().enumerate() {
         let p = |q: f64| common::percentile(&l.latency_ms, q);
         println!(
-            "| {} | {} | {:.3} ms | {:.3} ms | {:.3} ms | {:.3} ms | {} / {} / {} |",
+            "| {} | {} | {:.3} ms | {:.3} ms | {:.3} ms | {:.3} ms | {} / {} / {} | {:.1} / {:.1} ms |",
             l.on_command,
             i / 2 + 1,
             p(0.5),
@@ -175,18 +177,51 @@ fn run() -> anyhow::Result<()> {
             l.latency_ms.last().copied().unwrap_or(f64::NAN),
             l.ticks[0],
             l.ticks[1],
-            l.ticks[2]
+            l.ticks[2],
+            common::percentile(&l.tick_interval_ms, 0.1),
+            common::percentile(&l.tick_interval_ms, 0.9),
         );
     }
     Ok(())
 }
 
-/// Sends `n` commands at the rate (after 2 s of warm-up) and reads what the bridge answered.
+/// `--n N` (commands a launch, default 1000), `--sender-hz HZ` (default the bridge's rate).
+fn parse_args() -> anyhow::Result<(usize, f64)> {
+    let (mut n, mut sender_hz) = (1000, RATE_HZ);
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = || args.next().ok_or_else(|| anyhow!("{a} needs a value"));
+        match a.as_str() {
+            "--bench" => {}
+            "--n" => {
+                let v = value()?;
+                n = v
+                    .parse()
+                    .ok()
+                    .filter(|&n| n > 1)
+                    .ok_or_else(|| anyhow!("--n `{v}` is not a count above 1"))?;
+            }
+            "--sender-hz" => {
+                let v = value()?;
+                sender_hz = v
+                    .parse()
+                    .ok()
+                    .filter(|&hz: &f64| (1.0..=1000.0).contains(&hz))
+                    .ok_or_else(|| anyhow!("--sender-hz `{v}` is not a rate from 1 to 1000 Hz"))?;
+            }
+            other => bail!("unknown argument `{other}` (options: --n N, --sender-hz HZ)"),
+        }
+    }
+    Ok((n, sender_hz))
+}
+
+/// Sends `n` commands at `sender_hz` (after 2 s of warm-up) and reads what the bridge answered.
 fn measure(
     publisher: &ros2_client::Publisher<JointState>,
     rx: &mpsc::Receiver<(Duration, Vec<String>)>,
     start: Instant,
     n: usize,
+    sender_hz: f64,
     on_command: bool,
 ) -> anyhow::Result<Launch> {
     // The bridge's joint_states name its joints: what a command must name.
@@ -197,8 +232,8 @@ fn measure(
             Err(_) => bail!("no joint_states from the bridge within 20 s"),
         }
     };
-    let period = Duration::from_secs_f64(1.0 / RATE_HZ);
-    let warm_up = (2.0 * RATE_HZ) as usize;
+    let period = Duration::from_secs_f64(1.0 / sender_hz);
+    let warm_up = (2.0 * sender_hz) as usize;
     let t0 = Instant::now();
     let mut sent = Vec::with_capacity(n);
     for k in 0..warm_up + n {
@@ -247,10 +282,16 @@ fn measure(
         }
     }
     latency_ms.sort_by(f64::total_cmp);
+    let mut tick_interval_ms: Vec<f64> = ticks
+        .windows(2)
+        .map(|w| (w[1] - w[0]).as_secs_f64() * 1e3)
+        .collect();
+    tick_interval_ms.sort_by(f64::total_cmp);
     Ok(Launch {
         on_command,
         latency_ms,
         ticks: per_period,
+        tick_interval_ms,
     })
 }
 

@@ -14,8 +14,13 @@
 //!   faster than that; a command that came early after a late one is not held long).
 //! - Without commands the bridge ticks by itself, a period apart on a drift-free schedule
 //!   (holding, its watchdog, `joint_states` at the rate); after a tick a command drove, its
-//!   own next tick waits one and a half periods, so a command a little late still drives its
-//!   tick rather than being one tick behind.
+//!   own next tick waits one and a half periods while the commands come about a period
+//!   apart, so a command a little late still drives its tick rather than being one tick
+//!   behind; when they come further apart (a sender at half the rate, a single command), a
+//!   period: the own ticks fill in between on the bridge's grid, except within half a period
+//!   of when the sender's next command is due (its last one plus the time between its last
+//!   two), where the command drives the tick and the own one waits half a period past it (a
+//!   sender at 50 Hz and a bridge at 100 Hz tick every 10 ms, every other tick a command's).
 //! - Without `on_command`, only its own ticks: the fixed-rate loop.
 
 /// When the next tick is: the bridge's own, or one a command drives.
@@ -25,6 +30,10 @@ pub struct TickPacing {
     on_command: bool,
     /// When the last tick ran (s).
     last_tick_s: Option<f64>,
+    /// When the last tick a command drove ran (s).
+    last_command_tick_s: Option<f64>,
+    /// The time between the last two ticks commands drove (s).
+    command_apart_s: Option<f64>,
     /// When the bridge's own next tick is due (s).
     own_due_s: f64,
 }
@@ -37,6 +46,8 @@ impl TickPacing {
             period_s: 1.0 / rate_hz,
             on_command,
             last_tick_s: None,
+            last_command_tick_s: None,
+            command_apart_s: None,
             own_due_s: start_s,
         }
     }
@@ -59,8 +70,19 @@ impl TickPacing {
     /// A tick ran at `t_s`, driven by a command or not.
     pub fn ticked(&mut self, t_s: f64, by_command: bool) {
         self.last_tick_s = Some(t_s);
-        self.own_due_s = if by_command {
-            t_s + 1.5 * self.period_s
+        let next = if by_command {
+            // The commands' own period, from the last two (unknown at the first: taken as
+            // the bridge's).
+            self.command_apart_s = self.last_command_tick_s.map(|c| t_s - c);
+            self.last_command_tick_s = Some(t_s);
+            if self
+                .command_apart_s
+                .is_some_and(|d| d >= 1.25 * self.period_s)
+            {
+                t_s + self.period_s
+            } else {
+                t_s + 1.5 * self.period_s
+            }
         } else {
             // On the schedule; a tick missed whole (a stall) starts it again from now.
             let next = self.own_due_s + self.period_s;
@@ -70,6 +92,25 @@ impl TickPacing {
                 t_s + self.period_s
             }
         };
+        self.own_due_s = self.clear_of_the_next_command(next);
+    }
+
+    /// `own_s`, or half a period past the sender's next command when that is due within
+    /// half a period of `own_s` (a sender slower than 1.25 periods, on its own schedule).
+    fn clear_of_the_next_command(&self, own_s: f64) -> f64 {
+        let half = 0.5 * self.period_s;
+        match (self.last_command_tick_s, self.command_apart_s) {
+            (Some(c), Some(d)) if d >= 2.5 * half => {
+                let m = ((own_s - half - c) / d).ceil().max(1.0);
+                let due = c + m * d;
+                if (own_s - due).abs() < half {
+                    due + half
+                } else {
+                    own_s
+                }
+            }
+            _ => own_s,
+        }
     }
 }
 
@@ -114,6 +155,46 @@ mod tests {
         // The sender stops: the own ticks take over, a period apart from the first.
         p.ticked(0.028, false);
         assert!(close(p.own_tick_due_s(), 0.038));
+    }
+
+    #[test]
+    fn a_sender_at_half_the_rate_gets_the_own_ticks_in_between_on_the_grid() {
+        // Commands every 20 ms to a 100 Hz bridge: after the second command tick the own
+        // tick comes a period later, and the next command, a period after that, ticks at
+        // once: 0.100, 0.110, 0.1202, 0.1302 ...
+        let mut p = TickPacing::new(100.0, true, 0.0);
+        p.ticked(0.080, true);
+        assert!(close(p.own_tick_due_s(), 0.095));
+        p.ticked(0.095, false);
+        p.ticked(0.100, true);
+        assert!(close(p.own_tick_due_s(), 0.110));
+        p.ticked(0.110, false);
+        // The grid's 0.120 is when the next command is due: the command drives it (from
+        // 0.115 on), the own tick waits until 0.125 in case it does not come.
+        assert!(close(p.command_tick_from_s(), 0.115));
+        assert!(close(p.own_tick_due_s(), 0.125));
+        p.ticked(0.1202, true);
+        assert!(close(p.own_tick_due_s(), 0.1302));
+        // The command due at 0.1404 does not come: the own tick waits until 0.1454, then
+        // goes on a period apart, clear of the next command due (0.1606: until 0.1656).
+        p.ticked(0.1302, false);
+        assert!(close(p.own_tick_due_s(), 0.1454));
+        p.ticked(0.1454, false);
+        assert!(close(p.own_tick_due_s(), 0.1554));
+        p.ticked(0.1554, false);
+        assert!(close(p.own_tick_due_s(), 0.1656));
+        // A sender at 77 Hz (13 ms apart): no own tick between its commands (the grid's
+        // 1.023 is within half a period of the command due at 1.026: it waits until 1.031).
+        let mut r = TickPacing::new(100.0, true, 0.0);
+        r.ticked(1.0, true);
+        r.ticked(1.013, true);
+        assert!(close(r.own_tick_due_s(), 1.031));
+        // A single command after a long silence: the own ticks go on a period after it.
+        let mut q = TickPacing::new(100.0, true, 0.0);
+        q.ticked(1.0, true);
+        q.ticked(1.015, false);
+        q.ticked(7.0, true);
+        assert!(close(q.own_tick_due_s(), 7.01));
     }
 
     #[test]

@@ -3,8 +3,9 @@
 //! Subscribes `joint_commands` (sensor_msgs/msg/JointState, positions by URDF joint name);
 //! drives the backend through the bridge (URDF limits, velocity limits, servo-sag
 //! compensation, watchdog); publishes `joint_states` (sensor_msgs/msg/JointState, every driven
-//! joint) at `rate_hz` — except with the `sim` backend, whose simulator publishes the measured
-//! `joint_states` itself.
+//! joint) at each tick (`rate_hz`, or each command while commands come: `tick_on_command`) —
+//! except with the `sim` backend, whose simulator publishes the measured `joint_states`
+//! itself.
 //!
 //! Parameters: `robot_description_file` (URDF; empty for the built-in robot), `backend`
 //! (`mock`, `sim` or `serial`), `rate_hz` (100), `tick_on_command` (true: on the monotonic
