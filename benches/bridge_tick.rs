@@ -193,14 +193,7 @@ fn parse_args() -> anyhow::Result<(usize, f64)> {
         let mut value = || args.next().ok_or_else(|| anyhow!("{a} needs a value"));
         match a.as_str() {
             "--bench" => {}
-            "--n" => {
-                let v = value()?;
-                n = v
-                    .parse()
-                    .ok()
-                    .filter(|&n| n > 1)
-                    .ok_or_else(|| anyhow!("--n `{v}` is not a count above 1"))?;
-            }
+            "--n" => n = common::positive_count(&a, &value()?)?,
             "--sender-hz" => {
                 let v = value()?;
                 sender_hz = v

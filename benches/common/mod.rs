@@ -221,6 +221,14 @@ pub struct CountArgs {
     pub latency: Option<node_runtime::CpuLatencyRequest>,
 }
 
+/// The value `v` of a count argument `flag` (`--n`), a positive integer.
+pub fn positive_count(flag: &str, v: &str) -> anyhow::Result<usize> {
+    v.parse()
+        .ok()
+        .filter(|&n| n > 0)
+        .ok_or_else(|| anyhow!("{flag} `{v}` is not a positive count"))
+}
+
 /// Parses [`CountArgs`] and holds the latency request if one is given.
 pub fn count_args(default: usize) -> anyhow::Result<CountArgs> {
     let mut n = default;
@@ -230,14 +238,7 @@ pub fn count_args(default: usize) -> anyhow::Result<CountArgs> {
         let mut value = || args.next().ok_or_else(|| anyhow!("{a} needs a value"));
         match a.as_str() {
             "--bench" => {}
-            "--n" => {
-                let v = value()?;
-                n = v
-                    .parse()
-                    .ok()
-                    .filter(|&n| n > 0)
-                    .ok_or_else(|| anyhow!("--n `{v}` is not a positive count"))?;
-            }
+            "--n" => n = positive_count(&a, &value()?)?,
             "--cpu-dma-latency-us" => {
                 let us = latency_arg(&value()?)?;
                 latency = Some(node_runtime::CpuLatencyRequest::hold(us)?);
