@@ -44,7 +44,8 @@
 //! On the monotonic clock, with `tick_on_command` (the default), each command ticks the
 //! bridge as it comes (no sooner than half a period after the last tick), and without
 //! commands the bridge ticks by itself at `rate_hz` (from one and a half periods after the
-//! last command): a planner's command reaches the servos a DDS hop after it was sent, not
+//! last command, or a period for a slower sender, clear of its next command): a planner's
+//! command reaches the servos a DDS hop after it was sent, not
 //! up to a period later at the bridge's own tick, and two timers' phases never put two
 //! commands in one tick and none in the next ([`crate::pacing`]). `false`: the bridge ticks
 //! at `rate_hz` alone and takes what came at each tick.
@@ -419,14 +420,12 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     } else {
         "not connected yet (retrying)"
     };
-    let clock = if simulated {
-        "on /clock (lockstep)"
-    } else {
-        if tick_on_command {
+    let clock = match (simulated, tick_on_command) {
+        (true, _) => "on /clock (lockstep)",
+        (false, true) => {
             "on the monotonic clock, and at each command as it comes (tick_on_command)"
-        } else {
-            "on the monotonic clock (tick_on_command false)"
         }
+        (false, false) => "on the monotonic clock (tick_on_command false)",
     };
     ros.info(&format!(
         "ready: backend {what} {status}, {} joints, {rate_hz} Hz {clock}, watchdog {timeout_s} s ({action_name}), start ramp {start_ramp_s} s, {compensation}; {states}",
