@@ -407,7 +407,7 @@ def start_flowing(bin_dir, params, extra=None):
 
 
 def scenario_bridge_ticks(bin_dir, params):
-    """The joint_bridge alone (mock backend) at 1 Hz, fed by the peer: 10 joint commands
+    """The joint_bridge alone (mock backend) at 1 Hz, fed by the peer: 14 joint commands
     0.6 s apart. Records when each was sent (system clock, s) and the stamp of every
     joint_states (the bridge's tick, the same clock). With `tick_on_command` (the default)
     each command ticks the bridge as it comes; on its 1 Hz ticks alone a command would find a
@@ -425,7 +425,7 @@ def scenario_bridge_ticks(bin_dir, params):
         return out
     names = peer.states[-1]["name"]
     sent = []
-    for k in range(10):
+    for k in range(14):
         m = JointState()
         m.name = names
         m.position = [0.001 * (k + 1)] * len(names)
