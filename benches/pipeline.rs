@@ -50,7 +50,7 @@ mod common;
 use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitCode, Stdio};
+use std::process::{Command, ExitCode};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, mpsc};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -59,7 +59,8 @@ use anyhow::{Context as _, anyhow, bail};
 use biped_msgs::RosMessage;
 use biped_msgs::msg::{AnkleTargets, Header, JointState, Point, Time};
 use common::{
-    bin_dir, check_only_loopback, lock_version, machine, machine_cpu, proc_cpu_time, warn_if_stale,
+    Proc, bin_dir, check_only_loopback, lock_version, machine, machine_cpu, proc_cpu_time,
+    warn_if_stale,
 };
 use gait_planner::{GaitParams, GaitPlanner, WalkRequest};
 use ik_solver::BipedModel;
@@ -220,9 +221,13 @@ fn run() -> anyhow::Result<()> {
     let clock = StampClock::new();
     let rates = [(100.0, opts.n_100hz), (1000.0, opts.n_1khz)];
 
+    // The relays' stderr files.
+    let scratch = std::env::temp_dir().join(format!("biped-bench-pipeline-{}", std::process::id()));
+    std::fs::create_dir_all(&scratch).with_context(|| scratch.display().to_string())?;
     let mut results = Vec::new();
     let mut versions = Vec::new();
     for &relay in &opts.relays {
+        let what = format!("{} relay", relay.name());
         let mut child = match relay {
             Relay::IkSolver => {
                 let exe = bins.join("ik_solver");
@@ -259,7 +264,7 @@ fn run() -> anyhow::Result<()> {
                     // Inherited as well; the parameter is what a user would set.
                     cmd.args(["-p", &format!("thread_priority:={priority}")]);
                 }
-                spawn_relay(&mut cmd, relay)?
+                Proc::spawn(&mut cmd, &what, &scratch)?
             }
             Relay::Rclpy => {
                 let python = std::env::var_os("BIPED_PYTHON")
@@ -271,15 +276,16 @@ fn run() -> anyhow::Result<()> {
                         python.display()
                     );
                 }
-                spawn_relay(
+                Proc::spawn(
                     Command::new(&python)
                         .arg(root.join("benches/pipeline_relay.py"))
                         .args(&leg_joints),
-                    relay,
+                    &what,
+                    &scratch,
                 )?
             }
         };
-        eprintln!("[{}] started, pid {}", relay.name(), child.process.id());
+        eprintln!("[{}] started, pid {}", relay.name(), child.pid());
         let outcome = session(
             relay,
             &mut child,
@@ -289,22 +295,17 @@ fn run() -> anyhow::Result<()> {
             clock,
             &opts,
         );
-        let stdout = child.stop();
+        let stdout = child.interrupt_and_read();
         match outcome {
             Ok(mut r) => results.append(&mut r),
-            Err(e) => {
-                return Err(e.context(format!(
-                    "relay {}; its stderr ends:\n{}",
-                    relay.name(),
-                    child.stderr_tail()
-                )));
-            }
+            Err(e) => return Err(e.context(child.stderr_tail())),
         }
         if relay == Relay::Rclpy {
             versions.push(stdout.lines().next().unwrap_or_default().trim().to_owned());
         }
     }
 
+    let _ = std::fs::remove_dir_all(&scratch);
     println!("\n{}", table(&results));
     let section = section(&opts, &root, &results, &versions);
     if opts.write {
@@ -364,77 +365,6 @@ impl StampClock {
     }
     fn now_ns(&self) -> i64 {
         self.base_ns + self.t0.elapsed().as_nanos() as i64
-    }
-}
-
-/// A relay process, its stderr in a file.
-struct RelayProcess {
-    process: Child,
-    stderr_path: PathBuf,
-}
-
-fn spawn_relay(cmd: &mut Command, relay: Relay) -> anyhow::Result<RelayProcess> {
-    let stderr_path = std::env::temp_dir().join(format!(
-        "biped-bench-pipeline-{}-{}.stderr",
-        relay.name(),
-        std::process::id()
-    ));
-    let stderr = std::fs::File::create(&stderr_path)?;
-    let process = cmd
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(stderr)
-        .spawn()
-        .with_context(|| format!("starting the {} relay", relay.name()))?;
-    Ok(RelayProcess {
-        process,
-        stderr_path,
-    })
-}
-
-impl RelayProcess {
-    /// SIGINT, as Ctrl-C; killed if still there after 10 s. Returns its stdout.
-    fn stop(&mut self) -> String {
-        let pid = nix::unistd::Pid::from_raw(self.process.id() as i32);
-        let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT);
-        let deadline = Instant::now() + Duration::from_secs(10);
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.process.try_wait() {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        if let Ok(None) = self.process.try_wait() {
-            let _ = self.process.kill();
-            let _ = self.process.wait();
-        }
-        let mut out = String::new();
-        if let Some(mut s) = self.process.stdout.take() {
-            let _ = std::io::Read::read_to_string(&mut s, &mut out);
-        }
-        out
-    }
-    fn stderr_tail(&self) -> String {
-        let s = std::fs::read_to_string(&self.stderr_path).unwrap_or_default();
-        let lines: Vec<&str> = s.lines().collect();
-        lines[lines.len().saturating_sub(20)..].join("\n")
-    }
-    /// CPU time (user + system) the process has used so far, or None if unreadable.
-    fn cpu_time(&self) -> Option<Duration> {
-        proc_cpu_time(&self.process.id().to_string())
-    }
-    fn exited(&mut self) -> bool {
-        !matches!(self.process.try_wait(), Ok(None))
-    }
-}
-
-impl Drop for RelayProcess {
-    fn drop(&mut self) {
-        if let Ok(None) = self.process.try_wait() {
-            let _ = self.process.kill();
-            let _ = self.process.wait();
-        }
-        let _ = std::fs::remove_file(&self.stderr_path);
     }
 }
 
@@ -565,7 +495,7 @@ impl OthersSampler {
 /// One relay: our node's ends, discovery, then a run at each rate.
 fn session(
     relay: Relay,
-    child: &mut RelayProcess,
+    child: &mut Proc,
     rates: &[(f64, usize)],
     targets: &[AnkleTargets],
     joints: usize,
@@ -728,7 +658,7 @@ fn wait_for_round_trip(
     targets: &[AnkleTargets],
     clock: StampClock,
     rx: &mpsc::Receiver<Arrival>,
-    child: &mut RelayProcess,
+    child: &mut Proc,
 ) -> anyhow::Result<()> {
     let start = Instant::now();
     for k in 0.. {
@@ -797,7 +727,7 @@ fn measure(
     k: &mut usize,
     clock: StampClock,
     rx: &mpsc::Receiver<Arrival>,
-    child: &mut RelayProcess,
+    child: &mut Proc,
     joints: usize,
     dump: Option<&Path>,
 ) -> anyhow::Result<RunResult> {
@@ -806,7 +736,7 @@ fn measure(
     send_at_rate(publisher, targets, k, rate_hz, warmup, clock)?;
     drain(rx, Duration::from_millis(300));
 
-    let sampler = OthersSampler::start(child.process.id());
+    let sampler = OthersSampler::start(child.pid());
     let cpu0 = child.cpu_time();
     let own0 = proc_cpu_time("self");
     let busy0 = machine_cpu().map(|m| m.busy);

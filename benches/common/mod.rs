@@ -311,6 +311,24 @@ impl Proc {
             let _ = self.child.wait();
         }
     }
+    /// SIGINT as [`Proc::interrupt`], then what it wrote on stdout (empty if [`Proc::lines`]
+    /// took it).
+    pub fn interrupt_and_read(&mut self) -> String {
+        self.interrupt();
+        let mut out = String::new();
+        if let Some(mut s) = self.child.stdout.take() {
+            let _ = std::io::Read::read_to_string(&mut s, &mut out);
+        }
+        out
+    }
+    /// Whether it has exited.
+    pub fn exited(&mut self) -> bool {
+        !matches!(self.child.try_wait(), Ok(None))
+    }
+    /// CPU time (user + system) it has used so far, or None if unreadable.
+    pub fn cpu_time(&self) -> Option<Duration> {
+        proc_cpu_time(&self.pid().to_string())
+    }
     pub fn stderr_tail(&self) -> String {
         let s = std::fs::read_to_string(&self.stderr_path).unwrap_or_default();
         let lines: Vec<&str> = s.lines().collect();
