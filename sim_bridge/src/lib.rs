@@ -16,6 +16,8 @@
 //! - [`static_torques_nm`] / [`compensated_targets_rad`]: the servo-sag compensation of
 //!   ALGORITHM.md ("Position servos are springs") of a planned pose
 //!   ([`ik_solver::StaticPose`]), from the URDF mass model alone;
+//! - [`DelayLine`]: commands acting a fixed delay of simulated time after they came, as a
+//!   servo bus's latency delays them;
 //! - [`SimBackend`]: the simulator behind joint_bridge's [`joint_bridge::Backend`] trait,
 //!   so the node fleet can drive it like a servo board.
 //!
@@ -28,6 +30,7 @@
 mod backend;
 mod compensation;
 mod config;
+mod delay;
 mod error;
 mod mjcf;
 mod mjmodel;
@@ -41,6 +44,7 @@ pub use compensation::{
     compensated_targets_rad, static_compensation_rad, static_foot_loads, static_torques_nm,
 };
 pub use config::SimConfig;
+pub use delay::DelayLine;
 pub use error::SimError;
 pub use ik_solver::{FootLoad, GRAVITY_M_S2};
 pub use mjcf::{JointMap, MappedJoint};

@@ -76,7 +76,7 @@ const SIM_PARAMS: [&str; 8] = [
     "fall_tilt_deg",
     "fall_height_drop_m",
 ];
-const NODE_PARAMS: [&str; 10] = [
+const NODE_PARAMS: [&str; 11] = [
     "robot_description_file",
     "leg_map_file",
     "mjcf_file",
@@ -87,6 +87,7 @@ const NODE_PARAMS: [&str; 10] = [
     "world_frame",
     "start_paused",
     "wait_for_run_until",
+    "command_delay_s",
 ];
 
 /// The simulator settings from the node's parameters (defaults: [`SimConfig::default`]).
@@ -376,6 +377,18 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
             cfg.timestep_s
         );
     }
+    let step_ns = period_ns / steps_per_tick as i64;
+    let command_delay_s = setup.f64_param("command_delay_s", 0.0)?;
+    let delay_steps = (command_delay_s / cfg.timestep_s).round();
+    if !(0.0..=1.0).contains(&command_delay_s)
+        || (delay_steps * cfg.timestep_s - command_delay_s).abs() > 1e-9
+    {
+        anyhow::bail!(
+            "parameter `command_delay_s` = {command_delay_s}: must be from 0 to 1 s and a whole number of physics steps of timestep_s = {} s",
+            cfg.timestep_s
+        );
+    }
+    let mut delay_line = crate::DelayLine::new(delay_steps as i64 * step_ns);
     let names: Vec<String> = sim.joint_names().to_vec();
     let robot = sim.biped().robot();
     let base_frame = robot.links()[robot.root()].name.clone();
@@ -408,6 +421,10 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         ),
         ("start_paused".into(), ParameterValue::Boolean(paused)),
         ("wait_for_run_until".into(), ParameterValue::Boolean(gated)),
+        (
+            "command_delay_s".into(),
+            ParameterValue::Double(command_delay_s),
+        ),
     ]);
     for (k, v) in [
         ("kp_nm_per_rad", cfg.kp_nm_per_rad),
@@ -458,7 +475,7 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         .map(|(i, n)| (n.clone(), i))
         .collect();
     ros.info(&format!(
-        "ready: robot {} in MuJoCo from {} ({} joints, {:.3} kg, servos kp {} N·m/rad: joint_bridge's sag_compensation_kp should match), {} Hz clock, {}, {}",
+        "ready: robot {} in MuJoCo from {} ({} joints, {:.3} kg, servos kp {} N·m/rad: joint_bridge's sag_compensation_kp should match), {} Hz clock, {}, {}, {}",
         sim.biped().robot().name(),
         if mjcf_file.is_empty() {
             "the URDF".to_string()
@@ -478,6 +495,14 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
             format!("{rtf}x real time")
         } else {
             "as fast as possible".into()
+        },
+        if command_delay_s > 0.0 {
+            format!(
+                "the servos act on a command {:.0} ms after it comes (command_delay_s)",
+                command_delay_s * 1e3
+            )
+        } else {
+            "the servos act on a command as it comes".into()
         }
     ));
 
@@ -487,6 +512,47 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let mut newest_answer_ns = i64::MIN;
     let mut reported_fall = false;
     let mut unknown_reported = std::collections::HashSet::new();
+    // A command acting on the servos: its targets (names the robot lacks reported once), or
+    // torque off when it names no joint.
+    let mut apply = |sim: &mut Sim, cmd: JointState| {
+        if cmd.name.is_empty() {
+            if sim.torque_on() {
+                ros.warn("torque off (an empty sim/joint_commands)");
+            }
+            sim.set_torque(false);
+            return;
+        }
+        if cmd.name.len() != cmd.position.len() {
+            ros.warn(&format!(
+                "sim/joint_commands with {} names and {} positions ignored",
+                cmd.name.len(),
+                cmd.position.len()
+            ));
+            return;
+        }
+        let mut targets = sim.targets_rad().to_vec();
+        for (n, &p) in cmd.name.iter().zip(&cmd.position) {
+            match index.get(n) {
+                Some(&i) => targets[i] = p,
+                None => {
+                    if unknown_reported.insert(n.clone()) {
+                        ros.warn(&format!(
+                            "sim/joint_commands: unknown joint `{n}` ignored (reported once)"
+                        ));
+                    }
+                }
+            }
+        }
+        match sim.set_targets(&targets) {
+            Ok(()) => {
+                if !sim.torque_on() {
+                    sim.set_torque(true);
+                    ros.info("torque on");
+                }
+            }
+            Err(e) => ros.warn(&format!("sim/joint_commands refused: {e}")),
+        }
+    };
     let mut last_publish = Instant::now();
     let mut inbox: Option<JointState> = None;
     // With `wait_for_run_until`: the simulation steps only while t is before this (ns);
@@ -496,144 +562,140 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
     let mut wall0 = Instant::now();
     out.publish(&ros, &sim, Time::from_nanos(t_ns));
     let mut bound = node_runtime::WaitBound::every(Duration::from_millis(50));
-    let result: anyhow::Result<()> = executor.run(async {
-        while !stop.load(Ordering::SeqCst) {
-            while let Ok(Some((id, req))) = pause_srv.receive_request() {
-                let said = match (paused, req.data) {
-                    (false, true) => format!("paused at t = {:.3} s", t_ns as f64 * 1e-9),
-                    (true, false) => {
-                        // A paced simulation goes on at its pace from now.
-                        if rtf > 0.0 {
-                            let since = Duration::from_secs_f64(t_ns as f64 * 1e-9 / rtf);
-                            wall0 = Instant::now().checked_sub(since).unwrap_or(wall0);
+    let result: anyhow::Result<()> = executor
+        .run(async {
+            while !stop.load(Ordering::SeqCst) {
+                while let Ok(Some((id, req))) = pause_srv.receive_request() {
+                    let said = match (paused, req.data) {
+                        (false, true) => format!("paused at t = {:.3} s", t_ns as f64 * 1e-9),
+                        (true, false) => {
+                            // A paced simulation goes on at its pace from now.
+                            if rtf > 0.0 {
+                                let since = Duration::from_secs_f64(t_ns as f64 * 1e-9 / rtf);
+                                wall0 = Instant::now().checked_sub(since).unwrap_or(wall0);
+                            }
+                            format!("running from t = {:.3} s", t_ns as f64 * 1e-9)
                         }
-                        format!("running from t = {:.3} s", t_ns as f64 * 1e-9)
+                        (true, true) => {
+                            format!("already paused at t = {:.3} s", t_ns as f64 * 1e-9)
+                        }
+                        (false, false) => {
+                            format!("already running, t = {:.3} s", t_ns as f64 * 1e-9)
+                        }
+                    };
+                    paused = req.data;
+                    ros.answer_said(&pause_srv, "~/pause", id, said);
+                }
+                while let Some(c) = run_until
+                    .as_ref()
+                    .and_then(|s| ros.take_next(s, "~/run_until"))
+                {
+                    run_until_ns = c.clock.to_nanos();
+                }
+                let held = t_ns >= run_until_ns;
+                // Commands: received now, acting `command_delay_s` later (at once without it); the
+                // newest targets win.
+                let mut incoming: Vec<JointState> = inbox.take().into_iter().collect();
+                while let Some(cmd) = ros.take_next(&commands, "sim/joint_commands") {
+                    incoming.push(cmd);
+                }
+                for cmd in incoming {
+                    newest_answer_ns = newest_answer_ns.max(cmd.header.stamp.to_nanos());
+                    if let Some(early) = delay_line.push(t_ns, cmd) {
+                        apply(&mut sim, early);
                     }
-                    (true, true) => format!("already paused at t = {:.3} s", t_ns as f64 * 1e-9),
-                    (false, false) => format!("already running, t = {:.3} s", t_ns as f64 * 1e-9),
-                };
-                paused = req.data;
-                ros.answer_said(&pause_srv, "~/pause", id, said);
-            }
-            while let Some(c) = run_until.as_ref().and_then(|s| ros.take_next(s, "~/run_until")) {
-                run_until_ns = c.clock.to_nanos();
-            }
-            let held = t_ns >= run_until_ns;
-            // Commands: the newest targets win; names the robot lacks are reported once.
-            let mut batch: Vec<JointState> = inbox.take().into_iter().collect();
-            while let Some(cmd) = ros.take_next(&commands, "sim/joint_commands") {
-                batch.push(cmd);
-            }
-            for cmd in batch {
-                newest_answer_ns = newest_answer_ns.max(cmd.header.stamp.to_nanos());
-                if cmd.name.is_empty() {
-                    if sim.torque_on() {
-                        ros.warn("torque off (an empty sim/joint_commands)");
+                }
+                while let Some(cmd) = delay_line.pop_due(t_ns) {
+                    apply(&mut sim, cmd);
+                }
+                let answered = !lockstep || newest_answer_ns >= t_ns;
+                let due = rtf == 0.0
+                    || wall0.elapsed().as_secs_f64() * rtf >= (t_ns + period_ns) as f64 * 1e-9;
+                if answered && due && !paused && !held {
+                    // The tick's physics steps, a command that falls due inside them acting from
+                    // its step on.
+                    let mut done = 0;
+                    while done < steps_per_tick {
+                        let at_ns = t_ns + done as i64 * step_ns;
+                        while let Some(cmd) = delay_line.pop_due(at_ns) {
+                            apply(&mut sim, cmd);
+                        }
+                        let to_next = delay_line.next_due_ns().map_or(u64::MAX, |due_ns| {
+                            ((due_ns - at_ns + step_ns - 1) / step_ns) as u64
+                        });
+                        let n = to_next.clamp(1, steps_per_tick - done);
+                        sim.physics_steps(n)?;
+                        done += n;
                     }
-                    sim.set_torque(false);
+                    t_ns += period_ns;
+                    if rtf > 0.0 {
+                        let behind_s = wall0.elapsed().as_secs_f64() * rtf - t_ns as f64 * 1e-9;
+                        if behind_s > MAX_CATCH_UP_S {
+                            wall0 += Duration::from_secs_f64((behind_s - MAX_CATCH_UP_S) / rtf);
+                        }
+                    }
+                    out.publish(&ros, &sim, Time::from_nanos(t_ns));
+                    last_publish = Instant::now();
+                    if !reported_fall && let Some(f) = sim.fallen() {
+                        reported_fall = true;
+                        let msg = format!("the robot fell at t = {:.3} s: {}", f.t_s, f.reason);
+                        ros.error(&msg);
+                        if let Err(e) = out.fall.publish(StringMsg { data: msg }) {
+                            ros.error_throttled(
+                                "publish sim/fall",
+                                &format!("publish sim/fall: {e}"),
+                            );
+                        }
+                    }
                     continue;
                 }
-                if cmd.name.len() != cmd.position.len() {
-                    ros.warn(&format!(
-                        "sim/joint_commands with {} names and {} positions ignored",
-                        cmd.name.len(),
-                        cmd.position.len()
-                    ));
-                    continue;
+                if (!answered || paused || held)
+                    && last_publish.elapsed() >= Duration::from_millis(50)
+                {
+                    // Still waiting for tick t's answer, paused or held at `~/run_until`: say t
+                    // again (a late peer catches up; a node serves its services at a repeat).
+                    out.publish(&ros, &sim, Time::from_nanos(t_ns));
+                    last_publish = Instant::now();
                 }
-                let mut targets = sim.targets_rad().to_vec();
-                for (n, &p) in cmd.name.iter().zip(&cmd.position) {
-                    match index.get(n) {
-                        Some(&i) => targets[i] = p,
-                        None => {
-                            if unknown_reported.insert(n.clone()) {
-                                ros.warn(&format!(
-                                    "sim/joint_commands: unknown joint `{n}` ignored (reported once)"
-                                ));
+                // Wait for a command, or for the wall clock when pacing (the parked thread's own
+                // deadline, no async-io timer); otherwise (in lockstep, for the answer; paused;
+                // held) at most 50 ms, on one deadline kept across the ticks.
+                let pace = (rtf > 0.0 && answered && !paused && !held).then(|| {
+                    Duration::from_secs_f64(
+                        ((t_ns + period_ns) as f64 * 1e-9 / rtf - wall0.elapsed().as_secs_f64())
+                            .clamp(0.0, 0.05),
+                    )
+                });
+                use smol::future::FutureExt as _;
+                inbox = async { commands.async_take().await.ok().map(|(cmd, _)| cmd) }
+                    .or(async {
+                        match pace {
+                            Some(wait) => {
+                                node_runtime::wait::sleep_until(Instant::now() + wait).await;
+                            }
+                            None => {
+                                bound.fired().await;
                             }
                         }
-                    }
-                }
-                match sim.set_targets(&targets) {
-                    Ok(()) => {
-                        if !sim.torque_on() {
-                            sim.set_torque(true);
-                            ros.info("torque on");
-                        }
-                    }
-                    Err(e) => ros.warn(&format!("sim/joint_commands refused: {e}")),
-                }
-            }
-            let answered = !lockstep || newest_answer_ns >= t_ns;
-            let due = rtf == 0.0
-                || wall0.elapsed().as_secs_f64() * rtf >= (t_ns + period_ns) as f64 * 1e-9;
-            if answered && due && !paused && !held {
-                sim.physics_steps(steps_per_tick)?;
-                t_ns += period_ns;
-                if rtf > 0.0 {
-                    let behind_s = wall0.elapsed().as_secs_f64() * rtf - t_ns as f64 * 1e-9;
-                    if behind_s > MAX_CATCH_UP_S {
-                        wall0 += Duration::from_secs_f64((behind_s - MAX_CATCH_UP_S) / rtf);
-                    }
-                }
-                out.publish(&ros, &sim, Time::from_nanos(t_ns));
-                last_publish = Instant::now();
-                if !reported_fall && let Some(f) = sim.fallen() {
-                    reported_fall = true;
-                    let msg = format!("the robot fell at t = {:.3} s: {}", f.t_s, f.reason);
-                    ros.error(&msg);
-                    if let Err(e) = out.fall.publish(StringMsg { data: msg }) {
-                        ros.error_throttled("publish sim/fall", &format!("publish sim/fall: {e}"));
-                    }
-                }
-                continue;
-            }
-            if (!answered || paused || held) && last_publish.elapsed() >= Duration::from_millis(50)
-            {
-                // Still waiting for tick t's answer, paused or held at `~/run_until`: say t
-                // again (a late peer catches up; a node serves its services at a repeat).
-                out.publish(&ros, &sim, Time::from_nanos(t_ns));
-                last_publish = Instant::now();
-            }
-            // Wait for a command, or for the wall clock when pacing (the parked thread's own
-            // deadline, no async-io timer); otherwise (in lockstep, for the answer; paused;
-            // held) at most 50 ms, on one deadline kept across the ticks.
-            let pace = (rtf > 0.0 && answered && !paused && !held).then(|| {
-                Duration::from_secs_f64(
-                    ((t_ns + period_ns) as f64 * 1e-9 / rtf - wall0.elapsed().as_secs_f64())
-                        .clamp(0.0, 0.05),
-                )
-            });
-            use smol::future::FutureExt as _;
-            inbox = async { commands.async_take().await.ok().map(|(cmd, _)| cmd) }
-                .or(async {
-                    match pace {
-                        Some(wait) => {
-                            node_runtime::wait::sleep_until(Instant::now() + wait).await;
-                        }
-                        None => {
-                            bound.fired().await;
-                        }
-                    }
-                    None
-                })
-                .or(async {
-                    // Held: a new bound wakes the loop at once.
-                    match (&run_until, held) {
-                        (Some(sub), true) => {
-                            if let Ok((c, _)) = sub.async_take().await {
-                                run_until_ns = c.clock.to_nanos();
+                        None
+                    })
+                    .or(async {
+                        // Held: a new bound wakes the loop at once.
+                        match (&run_until, held) {
+                            (Some(sub), true) => {
+                                if let Ok((c, _)) = sub.async_take().await {
+                                    run_until_ns = c.clock.to_nanos();
+                                }
+                                None
                             }
-                            None
+                            _ => std::future::pending().await,
                         }
-                        _ => std::future::pending().await,
-                    }
-                })
-                .await;
-        }
-        Ok(())
-    })
-    .await;
+                    })
+                    .await;
+            }
+            Ok(())
+        })
+        .await;
     ros.info("shutting down");
     result
 }
