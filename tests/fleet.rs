@@ -798,6 +798,59 @@ fn a_composed_node_that_fails_stops_the_others_on_either_executor() {
     }
 }
 
+/// The simulator's `command_delay_s`: an rclpy peer as the joint bridge, answering every
+/// `/clock` tick, steps `l_elbow` from 0 to -0.3 rad at t = 1 s; the simulated servo acts on
+/// it at once (0), a tick later (0.01 s) and half a tick later (0.005 s, between two ticks).
+#[test]
+fn the_simulated_servos_act_on_a_command_the_set_delay_after_it_comes() {
+    let v = peer("sim_delay", 227);
+    let elbow = |delay: &str, ms: i64| -> f64 {
+        v["runs"][delay]["elbow"][(ms * 1_000_000).to_string()]
+            .as_f64()
+            .unwrap_or_else(|| panic!("no joint_states stamped {ms} ms with delay {delay}"))
+    };
+    for (delay, says) in [
+        ("0.0", "act on a command as it comes"),
+        ("0.01", "act on a command 10 ms after it comes"),
+        ("0.005", "act on a command 5 ms after it comes"),
+    ] {
+        assert_eq!(v["runs"][delay]["done"], true, "delay {delay}: {v}");
+        assert_eq!(v["exits"][delay]["returncode"], 0, "delay {delay}: {v}");
+        assert!(
+            v["ready"][delay].as_str().is_some_and(|r| r.contains(says)),
+            "delay {delay}: {}",
+            v["ready"][delay]
+        );
+        // Up to the step the three runs are one: the robot standing, the arm at rest at 0.
+        for ms in [990, 1000] {
+            assert!(elbow(delay, ms).abs() < 1e-4, "delay {delay}, {ms} ms");
+            assert!((elbow(delay, ms) - elbow("0.0", ms)).abs() < 1e-9);
+        }
+    }
+    // At once: the state after the step's tick has the elbow on its way to -0.3 rad.
+    let first = elbow("0.0", 1010) - elbow("0.0", 1000);
+    assert!(first < -0.005, "no response a tick after the step: {first}");
+    // A tick later: still at rest a tick after the step, then the same response as at once,
+    // tick for tick, 10 ms later (the rest of the robot stood still meanwhile).
+    assert!((elbow("0.01", 1010) - elbow("0.01", 1000)).abs() < 1e-5);
+    for k in 1..=25 {
+        let (late, on_time) = (elbow("0.01", 1010 + 10 * k), elbow("0.0", 1000 + 10 * k));
+        assert!(
+            (late - on_time).abs() < 1e-4,
+            "{} ms after the step: {late} with 10 ms of delay, {on_time} 10 ms earlier without",
+            10 * k + 10
+        );
+    }
+    // Half a tick later: the servo pushed for the tick's last 5 ms only. At its torque limit
+    // (1.5 N m, far below kp x 0.3 rad), from rest, the arm moves as t squared: 5 ms give
+    // about (5/10)^2 = 1/4 of what 10 ms give.
+    let half = elbow("0.005", 1010) - elbow("0.005", 1000);
+    assert!(
+        (0.15..0.4).contains(&(half / first)),
+        "5 ms of push moved the elbow {half} rad against {first} rad for 10 ms"
+    );
+}
+
 /// `biped launch --backend sim`: a plain rclpy node (as RViz or Foxglove would be) watches
 /// the simulated robot in real time and walks it with a `ros2 topic pub`-style command.
 #[test]

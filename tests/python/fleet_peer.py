@@ -4,7 +4,7 @@ Run inside a private network namespace (the Rust test does it). It starts the fl
 a ROS user would (`ros2 topic pub`, `ros2 param get/set`, kill a node, Ctrl-C the launcher)
 and prints what it saw as one JSON object on stdout. The assertions are the Rust test's.
 
-    python fleet_peer.py walk|ik|ik_on_receive|teleop|watchdog|bridge_ticks|launch|sim BIN_DIR [PARAMS_YAML]
+    python fleet_peer.py walk|ik|ik_on_receive|teleop|watchdog|bridge_ticks|launch|sim|sim_delay BIN_DIR [PARAMS_YAML]
 """
 
 import json
@@ -436,6 +436,51 @@ def scenario_bridge_ticks(bin_dir, params):
     peer.spin(0.5)
     out.update(sent=sent, states=[x["t"] for x in peer.states], rosout=peer.rosout)
     out["exits"] = stop_nodes(procs)
+    return out
+
+
+def scenario_sim_delay(bin_dir, params):
+    """The sim_bridge alone, in lockstep and as fast as answered, the peer its joint bridge:
+    it answers every /clock t with a sim/joint_commands stamped t, every joint at 0 rad
+    (where the robot stands from the start) but l_elbow, which steps to -0.3 rad from
+    t = 1 s on. Three simulators one after another, with command_delay_s 0, 0.01 and 0.005;
+    records l_elbow's measured position by the stamp of each joint_states (ns)."""
+    from rosgraph_msgs.msg import Clock
+    peer = Peer()
+    n = peer.node
+    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+    pub = n.create_publisher(JointState, "/sim/joint_commands", qos)
+    step_at_ns = 1_000_000_000
+    clock = []
+
+    def answer(m):
+        t_ns = m.clock.sec * 1_000_000_000 + m.clock.nanosec
+        clock.append(t_ns)
+        if not peer.states:
+            return  # the simulator says t again in 50 ms
+        c = JointState()
+        c.header.stamp = m.clock
+        c.name = peer.states[-1]["name"]
+        c.position = [-0.3 if (j == "l_elbow" and t_ns >= step_at_ns) else 0.0 for j in c.name]
+        pub.publish(c)
+
+    n.create_subscription(Clock, "/clock", answer, qos)
+    out = {"runs": {}, "exits": {}, "ready": {}}
+    for delay in ["0.0", "0.01", "0.005"]:
+        extra = {"sim_bridge": ["-p", "real_time_factor:=0.0", "-p", f"command_delay_s:={delay}"]}
+        procs = start_nodes(bin_dir, params, extra=extra, only=["sim_bridge"])
+        peer.states.clear()
+        clock.clear()
+        done = peer.spin(60.0, lambda: bool(clock) and clock[-1] >= step_at_ns + 300_000_000)
+        ready = [ln for ln in procs["sim_bridge"].early_stderr.splitlines() if "ready:" in ln]
+        out["ready"][delay] = ready[-1] if ready else None
+        elbow = {}
+        for st in peer.states:
+            if "l_elbow" in st["name"]:
+                elbow[str(round(st["t"] * 1e9))] = st["position"][st["name"].index("l_elbow")]
+        out["runs"][delay] = {"done": done, "elbow": elbow}
+        out["exits"][delay] = stop_nodes(procs)["sim_bridge"]
+        peer.spin(0.5)
     return out
 
 
@@ -1088,7 +1133,7 @@ def run_scenario(scenario, bin_dir, params):
               "lifecycle": scenario_lifecycle, "supervise": scenario_supervise, "clock": scenario_clock,
               "sim_kill": scenario_sim_kill, "discovery_off": scenario_discovery_off,
               "launch": scenario_launch,
-              "sim": scenario_sim,
+              "sim": scenario_sim, "sim_delay": scenario_sim_delay,
               "sim_composed": lambda b, p: scenario_sim(b, p, composed=True)}[scenario](bin_dir, params)
     json.dump(result, sys.stdout)
 

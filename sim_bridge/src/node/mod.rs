@@ -44,7 +44,9 @@
 //! `joint_map_file` (a MuJoCo scene of the robot and its map to the URDF's names, instead of
 //! building the simulation from the URDF; the scene then owns its physics and servos), `lockstep`
 //! (true), `real_time_factor` (1.0), `clock_rate_hz` (100), `world_frame` (`world`),
-//! `start_paused` (false), `wait_for_run_until` (false), and the
+//! `start_paused` (false), `wait_for_run_until` (false), `command_delay_s` (0: the servos
+//! act on a command that much simulated time after it comes, at its physics step, as a
+//! robot's servo bus and driver delay it; [`crate::DelayLine`]), and the
 //! simulator settings of [`sim_bridge::SimConfig`] (`kp_nm_per_rad`, `kv_nm_s_per_rad`,
 //! `torque_limit_nm` (0 = each joint's URDF effort), `armature_kg_m2`, `timestep_s`,
 //! `friction`, `fall_tilt_deg`, `fall_height_drop_m`). The robot starts standing on the floor
