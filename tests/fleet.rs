@@ -851,6 +851,25 @@ fn the_simulated_servos_act_on_a_command_the_set_delay_after_it_comes() {
     );
 }
 
+/// A `command_delay_s` the simulator cannot keep (negative, over 1 s, or between two physics
+/// steps of 1 ms) stops it at start, naming the parameter and the value.
+#[test]
+fn the_simulator_refuses_a_command_delay_it_cannot_keep() {
+    for value in ["-0.01", "2.0", "0.0005"] {
+        let err = failed_start(
+            common::in_netns("exec timeout 60 \"$@\"", 228)
+                .arg(bin_dir().join("sim_bridge"))
+                .args(["--ros-args", "-p", &format!("command_delay_s:={value}")]),
+        );
+        let shown = value.parse::<f64>().unwrap().to_string();
+        assert!(
+            err.contains(&format!("parameter `command_delay_s` = {shown}: "))
+                && err.contains("whole number of physics steps"),
+            "{value}: {err}"
+        );
+    }
+}
+
 /// `biped launch --backend sim`: a plain rclpy node (as RViz or Foxglove would be) watches
 /// the simulated robot in real time and walks it with a `ros2 topic pub`-style command.
 #[test]
