@@ -498,10 +498,10 @@ pub async fn run(setup: NodeSetup, host: Host) -> anyhow::Result<()> {
         } else {
             "as fast as possible".into()
         },
-        if command_delay_s > 0.0 {
+        if delay_line.delay_ns() > 0 {
             format!(
-                "the servos act on a command {:.0} ms after it comes (command_delay_s)",
-                command_delay_s * 1e3
+                "the servos act on a command {} ms after it comes (command_delay_s)",
+                delay_line.delay_ns() as f64 / 1e6
             )
         } else {
             "the servos act on a command as it comes".into()
